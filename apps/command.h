@@ -1,0 +1,70 @@
+// Self-registering `hmc` commands. Each command lives in its own cmd_*.cc:
+//
+//   HMC_COMMAND(ActorSynth, "actor", "synth", "Write the synthetic actor") {
+//     auto out = std::make_shared<std::string>();
+//     app->add_option("--out", *out, "...")->required();
+//     return [=] { ...; return 0; };
+//   }
+//
+// `app` is the command's CLI11 sub-app; the body adds the command's flags
+// and returns what runs after parsing. Group "" makes a top-level command.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "core/error.h"
+#include "core/options.h"
+
+namespace hmc {
+
+using CommandRun = std::function<int()>;
+using CommandSetup = std::function<CommandRun(CLI::App* app)>;
+
+bool RegisterCommand(const char* group, const char* name, const char* help,
+                     CommandSetup setup);
+
+// Adds `--config FILE` and one flag `--<field>` per registered option field
+// to `app`. Apply() (call at run time) loads the config file, then the flags
+// given on the command line on top of it. Unknown config keys are errors.
+class OptionBinding {
+ public:
+  OptionBinding(CLI::App* app, OptionFields fields);
+  void Apply();
+  const OptionFields& fields() const { return fields_; }
+
+ private:
+  OptionFields fields_;
+  std::string config_file_;
+  std::vector<std::pair<const OptionFields::Field*, CLI::Option*>> flags_;
+  std::vector<std::unique_ptr<std::string>> values_;
+};
+
+// Registers `options`' fields and binds them to `app`. `options` must outlive
+// the returned binding (hold both in the command's run closure).
+template <typename Options>
+std::shared_ptr<OptionBinding> BindOptions(CLI::App* app, Options* options) {
+  OptionFields fields;
+  options->Register(&fields);
+  return std::make_shared<OptionBinding>(app, std::move(fields));
+}
+
+// Throws InputError if options.Check() fails (Check logs the reason).
+template <typename Options>
+void RequireValid(const Options& options, const char* what) {
+  if (!options.Check()) {
+    throw InputError(std::string("invalid ") + what +
+                     " options (see the message above)");
+  }
+}
+
+}  // namespace hmc
+
+#define HMC_COMMAND(id, group, name, help)                                 \
+  static ::hmc::CommandRun HmcCommandSetup_##id(CLI::App* app);            \
+  [[maybe_unused]] static const bool kHmcCommandRegistered_##id =          \
+      ::hmc::RegisterCommand(group, name, help, &HmcCommandSetup_##id);    \
+  static ::hmc::CommandRun HmcCommandSetup_##id(CLI::App* app)

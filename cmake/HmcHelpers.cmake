@@ -1,0 +1,55 @@
+# Every hmc target is declared through these helpers so that all of them get
+# the same warnings, sanitizer flags and test wiring.
+
+set(HMC_WARNING_FLAGS -Wall -Wextra -Werror)
+set(HMC_SANITIZER_FLAGS -fsanitize=address,undefined -fno-omit-frame-pointer
+    -fno-sanitize-recover=undefined)
+
+function(hmc_target_common target)
+  target_compile_options(${target} PRIVATE ${HMC_WARNING_FLAGS})
+  if(HMC_SANITIZE)
+    target_compile_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})
+    target_link_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})
+  endif()
+endfunction()
+
+# hmc_add_library(NAME <target> [PUBLIC_DEPS ...] [PRIVATE_DEPS ...])
+# Sources: every *.cc in the calling folder that is not a *_test.cc.
+# Tests: every *_test.cc in the folder becomes one GoogleTest binary
+# <target>_test, registered with CTest.
+function(hmc_add_library)
+  cmake_parse_arguments(ARG "" "NAME" "PUBLIC_DEPS;PRIVATE_DEPS;TEST_DEPS" ${ARGN})
+  file(GLOB sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
+  file(GLOB tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
+  if(tests)
+    list(REMOVE_ITEM sources ${tests})
+  endif()
+  add_library(${ARG_NAME} STATIC ${sources})
+  target_include_directories(${ARG_NAME} PUBLIC ${PROJECT_SOURCE_DIR})
+  target_link_libraries(${ARG_NAME} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  hmc_target_common(${ARG_NAME})
+  if(HMC_BUILD_TESTS AND tests)
+    hmc_add_test(NAME ${ARG_NAME}_test SOURCES ${tests} DEPS ${ARG_NAME} ${ARG_TEST_DEPS})
+  endif()
+endfunction()
+
+# hmc_add_test(NAME <target> SOURCES ... [DEPS ...])
+function(hmc_add_test)
+  cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
+  add_executable(${ARG_NAME} ${ARG_SOURCES})
+  target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  hmc_target_common(${ARG_NAME})
+  gtest_discover_tests(${ARG_NAME}
+    WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
+    PROPERTIES ENVIRONMENT "HMC_SOURCE_DIR=${PROJECT_SOURCE_DIR}"
+    DISCOVERY_TIMEOUT 120)
+endfunction()
+
+# hmc_add_executable(NAME <target> SOURCES ... [DEPS ...])
+function(hmc_add_executable)
+  cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
+  add_executable(${ARG_NAME} ${ARG_SOURCES})
+  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR})
+  target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS})
+  hmc_target_common(${ARG_NAME})
+endfunction()

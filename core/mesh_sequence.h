@@ -1,0 +1,42 @@
+// Mesh sequences (DESIGN.md section 7): one topology, many frames of vertex
+// positions. Formats, chosen by extension:
+//   .pc2   Blender / 3ds Max point cache (float32, little endian)
+//   .mdd   LightWave / Blender MDD (float32, big endian, with frame times)
+//   .usda  USD ASCII: topology and UVs once, time-sampled `points`
+//   folder (no extension): one OBJ per frame, frame_000001.obj, ...
+// All writes are atomic. Formats: docs/formats.md.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace hmc {
+
+struct MeshSequence {
+  std::vector<MatX3d> frames;  // each V x 3 (mm)
+  int start_frame = 1;         // number of frames[0]
+  double fps = 30.0;           // frames per second
+  TriMesh topology;            // triangles (+ UVs); V may be empty for .pc2/.mdd
+                               // when the topology is read from elsewhere
+};
+
+enum class SequenceFormat { kPc2, kMdd, kUsda, kObjFolder };
+
+// By extension of `path`; a path without extension is an OBJ folder. Throws
+// InputError for an unknown extension.
+SequenceFormat SequenceFormatFromPath(const std::filesystem::path& path);
+
+// Reads any format. For .pc2/.mdd (points only) the topology is empty
+// unless `topology` is given; its vertex count is then checked.
+MeshSequence ReadMeshSequence(const std::filesystem::path& path,
+                              const TriMesh* topology = nullptr);
+
+// Writes any format. .usda and OBJ folders need seq.topology; .pc2/.mdd do
+// not. `precision`: significant digits for text formats.
+void WriteMeshSequence(const std::filesystem::path& path,
+                       const MeshSequence& seq, int precision = 9);
+
+}  // namespace hmc

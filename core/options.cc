@@ -1,0 +1,181 @@
+#include "core/options.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/file_util.h"
+
+namespace hmc {
+namespace {
+
+template <typename T>
+T ParseScalar(const YAML::Node& node, const std::string& key,
+              const std::filesystem::path& file, int line) {
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    ThrowInputError(file, line, "option '{}': cannot read '{}' as {}", key,
+                    node.Scalar(), std::is_same_v<T, double> ? "a number"
+                                   : std::is_same_v<T, int>  ? "an integer"
+                                   : std::is_same_v<T, bool> ? "true/false"
+                                                             : "text");
+  }
+}
+
+void AssignFromNode(const OptionFields::Field& field, const YAML::Node& node,
+                    const std::filesystem::path& file, int line) {
+  if (!node.IsScalar()) {
+    ThrowInputError(file, line, "option '{}' must be a single value",
+                    field.name);
+  }
+  std::visit(
+      [&](auto* pointer) {
+        using T = std::remove_pointer_t<decltype(pointer)>;
+        T value = ParseScalar<T>(node, field.name, file, line);
+        if constexpr (std::is_same_v<T, double>) {
+          if (!std::isfinite(value)) {
+            ThrowInputError(file, line, "option '{}' is not finite",
+                            field.name);
+          }
+        }
+        *pointer = value;
+      },
+      field.pointer);
+}
+
+void Walk(const YAML::Node& node, const std::string& prefix,
+          const OptionFields& fields, const std::filesystem::path& file) {
+  if (!node.IsMap()) {
+    ThrowInputError(file, node.Mark().line + 1,
+                    "expected a mapping of option names to values{}",
+                    prefix.empty() ? "" : " under '" + prefix + "'");
+  }
+  for (const auto& entry : node) {
+    const std::string key = entry.first.as<std::string>();
+    const std::string name = prefix.empty() ? key : prefix + "." + key;
+    const int line = entry.first.Mark().line + 1;
+    if (const auto* field = fields.Find(name)) {
+      AssignFromNode(*field, entry.second, file, line);
+      continue;
+    }
+    bool is_group = false;
+    for (const auto& f : fields.fields()) {
+      if (f.name.rfind(name + ".", 0) == 0) is_group = true;
+    }
+    if (!is_group) {
+      ThrowInputError(file, line, "unknown option '{}'", name);
+    }
+    Walk(entry.second, name, fields, file);
+  }
+}
+
+}  // namespace
+
+void OptionFields::AddField(const std::string& name, Pointer pointer,
+                            std::string help) {
+  const std::string full = group_.empty() ? name : group_ + "." + name;
+  HMC_CHECK_MSG(Find(full) == nullptr, "duplicate option " + full);
+  fields_.push_back({full, std::move(help), pointer});
+}
+
+void OptionFields::Add(const std::string& name, double* field,
+                       std::string help) {
+  AddField(name, field, std::move(help));
+}
+void OptionFields::Add(const std::string& name, int* field, std::string help) {
+  AddField(name, field, std::move(help));
+}
+void OptionFields::Add(const std::string& name, bool* field,
+                       std::string help) {
+  AddField(name, field, std::move(help));
+}
+void OptionFields::Add(const std::string& name, std::string* field,
+                       std::string help) {
+  AddField(name, field, std::move(help));
+}
+
+const OptionFields::Field* OptionFields::Find(const std::string& name) const {
+  for (const auto& field : fields_) {
+    if (field.name == name) return &field;
+  }
+  return nullptr;
+}
+
+void OptionFields::LoadYaml(const YAML::Node& root,
+                            const std::filesystem::path& file) {
+  if (!root || root.IsNull()) return;  // An empty config changes nothing.
+  Walk(root, "", *this, file);
+}
+
+void OptionFields::LoadYamlFile(const std::filesystem::path& file) {
+  if (!std::filesystem::exists(file)) {
+    ThrowInputError(file, 0, "config file does not exist");
+  }
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file.string());
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(file, e.mark.line + 1, "not valid YAML: {}", e.msg);
+  }
+  LoadYaml(root, file);
+}
+
+void OptionFields::Set(const std::string& name, const std::string& value,
+                       const std::string& origin) {
+  const Field* field = Find(name);
+  if (field == nullptr) throw InputError(origin + ": unknown option");
+  YAML::Node node;
+  try {
+    node = YAML::Load(value);
+  } catch (const YAML::Exception&) {
+    node = YAML::Node(value);
+  }
+  if (std::holds_alternative<std::string*>(field->pointer)) {
+    node = YAML::Node(value);  // Strings are taken verbatim.
+  }
+  AssignFromNode(*field, node, origin, 0);
+}
+
+std::string OptionFields::ValueString(const Field& field) const {
+  return std::visit(
+      [](auto* pointer) -> std::string {
+        using T = std::remove_pointer_t<decltype(pointer)>;
+        if constexpr (std::is_same_v<T, bool>) {
+          return *pointer ? "true" : "false";
+        } else if constexpr (std::is_same_v<T, std::string>) {
+          return *pointer;
+        } else if constexpr (std::is_same_v<T, double>) {
+          return fmt::format("{}", *pointer);  // Shortest round-trip form.
+        } else {
+          return std::to_string(*pointer);
+        }
+      },
+      field.pointer);
+}
+
+YAML::Node OptionFields::ToYaml() const {
+  YAML::Node root(YAML::NodeType::Map);
+  for (const auto& field : fields_) {
+    YAML::Node node = root;
+    std::string rest = field.name;
+    for (size_t dot; (dot = rest.find('.')) != std::string::npos;) {
+      // yaml-cpp nodes are handles: reassigning walks down the tree.
+      YAML::Node child = node[rest.substr(0, dot)];
+      node.reset(child);
+      rest = rest.substr(dot + 1);
+    }
+    std::visit([&](auto* pointer) { node[rest] = *pointer; }, field.pointer);
+  }
+  return root;
+}
+
+void WriteOptionsUsed(const OptionFields& fields,
+                      const std::filesystem::path& file) {
+  YAML::Emitter out;
+  out << fields.ToYaml();
+  WriteFileAtomic(file, std::string(out.c_str()) + "\n");
+}
+
+}  // namespace hmc
