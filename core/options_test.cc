@@ -1,0 +1,114 @@
+#include "core/options.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+
+namespace hmc {
+namespace {
+
+struct ExampleOptions {
+  double threshold_mm = 0.25;  // a number
+  int count = 3;               // an integer
+  bool enabled = true;         // a switch
+  std::string mode = "uv";     // a word
+  double grid_cell_mm = 2.0;   // in a group
+
+  void Register(OptionFields* fields) {
+    fields->Add("threshold_mm", &threshold_mm, "threshold (mm)");
+    fields->Add("count", &count, "count");
+    fields->Add("enabled", &enabled, "switch");
+    fields->Add("mode", &mode, "mode");
+    fields->SetGroup("grid");
+    fields->Add("cell_mm", &grid_cell_mm, "cell size (mm)");
+  }
+};
+
+std::filesystem::path TempFile(const std::string& name,
+                               const std::string& text) {
+  const auto path = std::filesystem::temp_directory_path() / name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(OptionsTest, YamlSetsNestedFields) {
+  ExampleOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  fields.LoadYaml(YAML::Load("threshold_mm: 0.5\ncount: 7\nenabled: false\n"
+                             "mode: geodesic\ngrid: {cell_mm: 1.5}\n"),
+                  "example.yaml");
+  EXPECT_EQ(options.threshold_mm, 0.5);
+  EXPECT_EQ(options.count, 7);
+  EXPECT_FALSE(options.enabled);
+  EXPECT_EQ(options.mode, "geodesic");
+  EXPECT_EQ(options.grid_cell_mm, 1.5);
+}
+
+TEST(OptionsTest, UnknownKeyNamesFileAndLine) {
+  ExampleOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  const auto path = TempFile("hmc_options_unknown.yaml",
+                             "count: 2\n\ngrid:\n  cel_mm: 1\n");
+  try {
+    fields.LoadYamlFile(path);
+    FAIL() << "unknown key accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.line(), 4);
+    EXPECT_NE(std::string(e.what()).find("grid.cel_mm"), std::string::npos);
+  }
+  EXPECT_EQ(options.grid_cell_mm, 2.0);
+}
+
+TEST(OptionsTest, WrongTypeAndNonFiniteRefused) {
+  ExampleOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  EXPECT_THROW(fields.LoadYaml(YAML::Load("count: 2.5"), "a.yaml"), InputError);
+  EXPECT_THROW(fields.LoadYaml(YAML::Load("threshold_mm: .nan"), "a.yaml"),
+               InputError);
+  EXPECT_THROW(fields.LoadYaml(YAML::Load("enabled: maybe"), "a.yaml"),
+               InputError);
+  EXPECT_THROW(fields.Set("count", "x", "--count"), InputError);
+  EXPECT_THROW(fields.Set("nope", "1", "--nope"), InputError);
+}
+
+TEST(OptionsTest, CommandLineTextOverrides) {
+  ExampleOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  fields.Set("grid.cell_mm", "0.75", "--grid.cell_mm");
+  fields.Set("mode", "123", "--mode");  // Strings stay verbatim.
+  EXPECT_EQ(options.grid_cell_mm, 0.75);
+  EXPECT_EQ(options.mode, "123");
+}
+
+TEST(OptionsTest, ToYamlRoundTripsEveryField) {
+  ExampleOptions written;
+  written.threshold_mm = 0.1 + 0.2;  // Not exactly representable in decimal.
+  written.count = -4;
+  written.enabled = false;
+  written.mode = "geodesic";
+  written.grid_cell_mm = 1.0 / 3.0;
+  OptionFields out;
+  written.Register(&out);
+  const std::string text = YAML::Dump(out.ToYaml());
+
+  ExampleOptions read;
+  OptionFields in;
+  read.Register(&in);
+  in.LoadYaml(YAML::Load(text), "options_used.yaml");
+  EXPECT_EQ(read.threshold_mm, written.threshold_mm);
+  EXPECT_EQ(read.count, written.count);
+  EXPECT_EQ(read.enabled, written.enabled);
+  EXPECT_EQ(read.mode, written.mode);
+  EXPECT_EQ(read.grid_cell_mm, written.grid_cell_mm);
+}
+
+}  // namespace
+}  // namespace hmc
