@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,8 +35,29 @@ SequenceFormat SequenceFormatFromPath(const std::filesystem::path& path);
 MeshSequence ReadMeshSequence(const std::filesystem::path& path,
                               const TriMesh* topology = nullptr);
 
+// What a file may not carry, given by the caller (`hmc convert --fps`).
+struct MeshSequenceReadOptions {
+  // For .pc2/.mdd (points only): triangles and UVs; vertex count checked.
+  const TriMesh* topology = nullptr;
+  // > 0: frames per second, overriding the file's; for .mdd it also numbers
+  // the frames from their times. 0: the file's (.usda, .mdd with two or more
+  // frames), else 30 (.usda without a rate: USD's default, 24).
+  double fps = 0.0;
+  // Number of the first frame, overriding the file's (.pc2 start, .mdd first
+  // time, .usda time codes, OBJ file names).
+  std::optional<int> start_frame;
+};
+MeshSequence ReadMeshSequence(const std::filesystem::path& path,
+                              const MeshSequenceReadOptions& options);
+
+// True for the formats that store triangles and UVs (.usda, OBJ folder).
+bool SequenceFormatHasTopology(SequenceFormat format);
+
 // Writes any format. .usda and OBJ folders need seq.topology; .pc2/.mdd do
-// not. `precision`: significant digits for text formats.
+// not. `precision`: significant digits for OBJ frames (17 round-trips any
+// double). .pc2/.mdd/.usda hold float32 (.usda: point3f, texCoord2f): values
+// are rounded to float32, and .usda writes the shortest text that reads back
+// as that float (fewer digits if precision < 9).
 void WriteMeshSequence(const std::filesystem::path& path,
                        const MeshSequence& seq, int precision = 9);
 
