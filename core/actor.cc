@@ -720,12 +720,12 @@ Eigen::VectorXd ParseJawWeights(std::string_view text, const fs::path& file,
 }
 
 std::string ReadPackageFile(const fs::path& path, const fs::path& yaml_file,
-                            const std::string& what, bool is_obj = false) {
+                            const std::string& what) {
   if (!fs::is_regular_file(path)) {
     ThrowInputError(path, 0, "missing: {} listed in {}", what,
                     yaml_file.string());
   }
-  return is_obj ? ReadObjText(path) : ReadFile(path);
+  return ReadFile(path);
 }
 
 }  // namespace
@@ -753,7 +753,7 @@ Actor LoadActor(const fs::path& dir) {
   ObjPolygons polygons;
   {
     const std::string text =
-        ReadPackageFile(neutral_file, yaml_file, "the neutral mesh", true);
+        ReadPackageFile(neutral_file, yaml_file, "the neutral mesh");
     ObjReadOptions options;
     options.require_uvs = true;
     options.scale = scale;
@@ -798,8 +798,7 @@ Actor LoadActor(const fs::path& dir) {
       const ShapeEntry& shape_entry = entry.shapes[n];
       const fs::path shape_file = dir / shape_entry.file;
       const std::string text = ReadPackageFile(
-          shape_file, yaml_file, "the OBJ of shape '" + shape_entry.name + "'",
-          true);
+          shape_file, yaml_file, "the OBJ of shape '" + shape_entry.name + "'");
       shape_hashes[n] = Fnv1a(text);
       ObjReadOptions options;
       options.scale = scale;

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <sstream>
@@ -59,9 +60,16 @@ std::string ReadFile(const std::filesystem::path& path) {
                                  ? "cannot open for reading"
                                  : "file does not exist");
   }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
+  // One sized read: several times faster than streaming through rdbuf on
+  // the multi-megabyte OBJs of an actor package.
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  in.seekg(0, std::ios::beg);
+  std::string contents(static_cast<size_t>(std::max<std::streamoff>(size, 0)), '\0');
+  if (size > 0 && !in.read(contents.data(), size)) {
+    ThrowInputError(path, 0, "read failed");
+  }
+  return contents;
 }
 
 void EnsureDirectory(const std::filesystem::path& dir) {

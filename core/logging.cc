@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <exception>
 #include <mutex>
 
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -31,6 +32,10 @@ StageTimer::StageTimer(std::string name)
 }
 
 StageTimer::~StageTimer() {
+  if (std::uncaught_exceptions() > 0) {
+    spdlog::debug("{}: failed after {:.2f} s", name_, ElapsedSeconds());
+    return;
+  }
   spdlog::info("{}: done in {:.2f} s", name_, ElapsedSeconds());
 }
 

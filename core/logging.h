@@ -13,7 +13,8 @@ namespace hmc {
 // verbosity: 0 = info, 1 = debug, 2 = trace, -1 = warnings only.
 void InitLogging(int verbosity);
 
-// Logs "<name>: start" now and "<name>: done in X s" when destroyed.
+// Logs "<name>: start" now and "<name>: done in X s" when destroyed (not
+// when destroyed by an exception: the error message says what happened).
 class StageTimer {
  public:
   explicit StageTimer(std::string name);

@@ -309,20 +309,9 @@ TriMesh ParseObj(std::string_view text, const std::filesystem::path& origin,
   return ObjParser(text, origin, options).Parse(polygons);
 }
 
-// ReadFile, in one read of the known size: shape OBJs are several MB each.
-std::string ReadObjText(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return ReadFile(path);  // Its error names the file and the cause.
-  std::string text(static_cast<size_t>(in.tellg()), '\0');
-  in.seekg(0);
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  if (!in) ThrowInputError(path, 0, "cannot read");
-  return text;
-}
-
 TriMesh ReadObj(const std::filesystem::path& path,
                 const ObjReadOptions& options) {
-  const std::string text = ReadObjText(path);
+  const std::string text = ReadFile(path);
   return ParseObj(text, path, options);
 }
 

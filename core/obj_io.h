@@ -39,10 +39,6 @@ struct ObjPolygons {
   int NumPolygons() const { return static_cast<int>(corners.size()); }
 };
 
-// The bytes of an OBJ file, read at once (ReadFile semantics and errors;
-// several times faster on the multi-MB files of an actor's shapes).
-std::string ReadObjText(const std::filesystem::path& path);
-
 // ReadObj on text already in memory; `origin` names the file in errors.
 // Fills `polygons` when given.
 TriMesh ParseObj(std::string_view text, const std::filesystem::path& origin,
