@@ -12,6 +12,7 @@
 
 #include <iosfwd>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/SparseCore>
@@ -47,5 +48,15 @@ struct NaturalNeighbourWeights {
 NaturalNeighbourWeights ComputeNaturalNeighbourWeights(
     const TriMesh& neutral, const std::vector<SurfacePoint>& sites,
     const NaturalNeighbourOptions& options);
+
+// Normalises per-vertex stolen areas into weights: row v holds
+// area_k / sum_k area_k for the (site k, area_k) pairs of stolen[v]. A vertex
+// that steals nothing sits on a site: Sibson's insertion leaves every cell
+// unchanged and the vertex adopts the cell of the site it coincides with
+// (paper, "Smoothness Considerations"), so its weight is 1 on cell[v].
+// Returns V x num_sites.
+Eigen::SparseMatrix<double, Eigen::RowMajor> WeightsFromStolenAreas(
+    const std::vector<std::vector<std::pair<int, double>>>& stolen,
+    const Eigen::VectorXi& cell, int num_sites);
 
 }  // namespace hmc

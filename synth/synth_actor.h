@@ -1,27 +1,69 @@
 // The synthetic actor (DESIGN.md section 6): a procedural, UV-parameterised
 // face, a painted-marker layout, a jaw rig, FACS-like action units with
 // nonlinear fine detail, and a dataset of shapes built from them.
-// Deterministic by seed.
+// Deterministic by seed. How it is made: docs/synthetic.md.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "core/actor.h"
 #include "core/options.h"
 
 namespace hmc {
 
+class FaceModel;
+
 struct SynthActorOptions {
-  int seed = 1;  // random seed: face proportions, marker jitter, dataset
-  // (The generator's other options -- resolution, number of markers, ... --
-  // are declared here by synth/; see configs/actor_synth.yaml.)
+  int seed = 1;  // random seed: face proportions, marker jitter, detail phases
+  std::string name = "synth_actor";  // actor name in actor.yaml
+  int grid_u = 256;  // vertex columns of the face grid (>= 24); 256 x 200 = 51200 vertices
+  int grid_v = 200;  // vertex rows of the face grid (>= 20)
+  double proportion_jitter = 0.04;  // relative spread of the seeded face proportions
+  double detail_scale = 1.0;        // scales wrinkle / fold amplitudes
+  double marker_jitter_mm = 0.8;    // std of the seeded marker placement jitter (mm)
+  bool dataset_inbetweens = true;   // add 50% (and some 25/75%) in-between shapes
+  bool dataset_combos = true;       // add the combination shapes
 
   void Register(OptionFields* fields);
   bool Check() const;
 };
 
+// One dataset shape: its name, tags and the activations that build it.
+struct DatasetEntry {
+  std::string name;                // "AU12_lip_corner_puller_L_100", "combo_smile"
+  Eigen::VectorXd activations;     // K unit activations
+  std::vector<std::string> tags;   // union of the units' region tags
+};
+
+// The dataset: every unit at 100% (and, if enabled, in-betweens and
+// combinations), in a fixed order.
+std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
+                                      const SynthActorOptions& options);
+
+// Builds the actor from an already built model (what SynthesizeActor does).
+Actor SynthesizeActorFromModel(const FaceModel& model,
+                               const SynthActorOptions& options);
+
+// synth.yaml in an actor package: the generator options it was made with,
+// so the generator can be rebuilt from the package.
+constexpr char kSynthOptionsFile[] = "synth.yaml";
+void WriteSynthActorOptions(const SynthActorOptions& options,
+                            const std::filesystem::path& actor_dir);
+// Throws InputError naming the file if it is missing, malformed or invalid.
+SynthActorOptions ReadSynthActorOptions(const std::filesystem::path& actor_dir);
+
+// Throws InputError (naming actor.dir / neutral.obj) unless `model`'s neutral
+// has the actor's triangles and its positions within `tolerance_mm`: the
+// package is what the generator makes, not edited or stale.
+void CheckActorMatchesModel(const Actor& actor, const FaceModel& model,
+                            double tolerance_mm);
+
 // The whole synthetic actor as an in-memory package (mm, head space).
+// Throws InputError if !options.Check().
 Actor SynthesizeActor(const SynthActorOptions& options);
 
 }  // namespace hmc

@@ -1,0 +1,214 @@
+// `hmc solve --actor DIR --bundles bundles.csv [--jaw jaw.csv] --out OUT
+// [--diagnostics FILE.json]`: local geometric indexing per bundle and frame,
+// sewn with natural-neighbour weights (DESIGN.md section 4). OUT by
+// extension: .pc2, .mdd, .usda, or a folder of OBJ frames. The index is
+// loaded from the actor's cache when valid, else built (and cached). Writes
+// options_used.yaml next to OUT.
+//
+// Frames run from the first to the last frame number of bundles.csv; a frame
+// without rows, with too few bundles or without a jaw pose (when --jaw is
+// given) is flagged bad in the diagnostics and repeats the previous good
+// mesh (the jaw-skinned neutral before the first good frame).
+#include <map>
+#include <memory>
+#include <string>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "apps/command.h"
+#include "blending/lgi_solver.h"
+#include "blending/solve_index_cache.h"
+#include "core/actor.h"
+#include "core/file_util.h"
+#include "core/frame_data.h"
+#include "core/logging.h"
+#include "core/mesh_sequence.h"
+
+namespace hmc {
+namespace {
+
+struct SolveCommandOptions {
+  LgiBuildOptions build;
+  SolveOptions solve;
+
+  void Register(OptionFields* fields) {
+    build.Register(fields);
+    solve.Register(fields);
+  }
+  bool Check() const { return build.Check() && solve.Check(); }
+};
+
+struct SolveCommand {
+  std::string actor_dir;
+  std::string bundles_file;
+  std::string jaw_file;
+  std::string out;
+  std::string diagnostics_file;
+  bool no_cache_write = false;
+  double fps = 30.0;
+  SolveCommandOptions options;
+};
+
+const char* StatusName(BundleSolve::Status status) {
+  switch (status) {
+    case BundleSolve::Status::kInside: return "inside";
+    case BundleSolve::Status::kProjected: return "projected";
+    case BundleSolve::Status::kFilled: return "filled";
+    case BundleSolve::Status::kUnused: return "unused";
+  }
+  return "unused";
+}
+
+nlohmann::json Diagnostics(const Actor& actor, const LgiModel& model,
+                           const SolveResult& result) {
+  const SolveSummary& s = result.summary;
+  nlohmann::json frames = nlohmann::json::array();
+  for (const FrameSolve& f : result.frames) {
+    nlohmann::json bundles = nlohmann::json::array();
+    for (size_t k = 0; k < f.bundles.size() && f.ok; ++k) {
+      const BundleSolve& b = f.bundles[k];
+      nlohmann::json shapes = nlohmann::json::array();
+      nlohmann::json weights = nlohmann::json::array();
+      for (const auto& [n, w] : b.weights) {
+        shapes.push_back(actor.shapes[n].name);
+        weights.push_back(w);
+      }
+      nlohmann::json entry = {{"marker", actor.markers[k].name},
+                              {"status", StatusName(b.status)},
+                              {"filled_missing",
+                               b.status == BundleSolve::Status::kFilled},
+                              {"shapes", shapes},
+                              {"weights", weights}};
+      if (b.status != BundleSolve::Status::kFilled) {
+        entry["projected_mm"] = b.distance;
+        entry["candidates"] = b.num_candidates;
+        entry["neighbour_cost_mm2"] = b.cost;
+        entry["residual_mm"] = b.residual;
+      }
+      bundles.push_back(entry);
+    }
+    frames.push_back({{"frame", f.frame},
+                      {"ok", f.ok},
+                      {"reason", f.reason},
+                      {"jaw",
+                       {{"open_deg", f.jaw.open_deg},
+                        {"lateral_deg", f.jaw.lateral_deg},
+                        {"protrude_mm", f.jaw.protrude_mm}}},
+                      {"unknown_markers", f.unknown_markers},
+                      {"bundles", bundles}});
+  }
+  return {{"actor", actor.name},
+          {"index", {{"from_cache", model.from_cache},
+                     {"build_seconds", model.build_seconds}}},
+          {"summary",
+           {{"frames", s.frames},
+            {"bad_frames", s.bad_frames},
+            {"bundles_inside", s.bundles_inside},
+            {"bundles_projected", s.bundles_projected},
+            {"bundles_filled", s.bundles_filled},
+            {"max_projection_mm", s.max_projection}}},
+          {"frames", frames}};
+}
+
+int Run(SolveCommand& cmd, OptionBinding& binding) {
+  binding.Apply();
+  RequireValid(cmd.options, "solve");
+  const Actor actor = LoadActor(cmd.actor_dir);
+  const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
+  if (rows.empty()) {
+    ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
+  }
+  // Check the output path before the long work.
+  const SequenceFormat format = SequenceFormatFromPath(cmd.out);
+  (void)format;
+  std::map<int, JawPose> jaw_by_frame;
+  if (!cmd.jaw_file.empty()) {
+    for (const JawFrame& j : ReadJawCsv(cmd.jaw_file)) {
+      jaw_by_frame[j.frame] = j.pose;
+    }
+  } else if (actor.jaw_rig) {
+    spdlog::warn("no --jaw given: solving with the zero jaw pose");
+  }
+  // Dense frame range: gaps become bad frames, so the output stays aligned
+  // with frame numbers.
+  const int first = rows.front().frame, last = rows.back().frame;
+  std::vector<BundleFrame> frames(last - first + 1);
+  std::vector<JawPose> jaw(frames.size());
+  std::vector<std::string> errors(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) {
+    frames[i].frame = first + static_cast<int>(i);
+    errors[i] = "no bundles in this frame";
+  }
+  for (const BundleFrame& row : rows) {
+    frames[row.frame - first] = row;
+    errors[row.frame - first].clear();
+  }
+  if (!cmd.jaw_file.empty()) {
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto it = jaw_by_frame.find(frames[i].frame);
+      if (it != jaw_by_frame.end()) {
+        jaw[i] = it->second;
+      } else if (errors[i].empty()) {
+        errors[i] = "no jaw pose for this frame in " + cmd.jaw_file;
+      }
+    }
+  }
+
+  StageTimer timer("solve");
+  const LgiModel model =
+      LoadOrBuildLgiModel(actor, cmd.options.build.index, cmd.options.build.nn,
+                          /*write_cache=*/!cmd.no_cache_write);
+  const LgiSolver solver(actor.neutral, model.data, model.index, model.nn,
+                         cmd.options.build.index, cmd.options.solve);
+  SolveResult result = solver.SolveSequence(frames, jaw, errors);
+
+  std::filesystem::path out_path(cmd.out);
+  const std::filesystem::path parent =
+      out_path.has_parent_path() ? out_path.parent_path()
+                                 : std::filesystem::path(".");
+  EnsureDirectory(parent);
+  MeshSequence seq;
+  seq.frames = std::move(result.meshes);
+  seq.start_frame = first;
+  seq.fps = cmd.fps;
+  seq.topology = actor.neutral;
+  WriteMeshSequence(cmd.out, seq);
+  WriteOptionsUsed(binding.fields(), parent / "options_used.yaml");
+  if (!cmd.diagnostics_file.empty()) {
+    WriteFileAtomic(cmd.diagnostics_file,
+                    Diagnostics(actor, model, result).dump(1) + "\n");
+  }
+  spdlog::info("solve: {}", result.summary.BriefReport());
+  return 0;
+}
+
+}  // namespace
+
+HMC_COMMAND(Solve, "", "solve",
+            "Solve meshes from bundles by local geometric indexing") {
+  auto cmd = std::make_shared<SolveCommand>();
+  app->add_option("--actor", cmd->actor_dir, "Actor package folder")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  app->add_option("--bundles", cmd->bundles_file,
+                  "bundles.csv (frame,marker,x,y,z in head space, mm)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app->add_option("--jaw", cmd->jaw_file, "jaw.csv: the jaw pose per frame")
+      ->check(CLI::ExistingFile);
+  app->add_option("--out", cmd->out,
+                  "Output mesh sequence: .pc2, .mdd, .usda or a folder of OBJ "
+                  "frames")
+      ->required();
+  app->add_option("--diagnostics", cmd->diagnostics_file,
+                  "Per frame and bundle diagnostics (JSON)");
+  app->add_option("--fps", cmd->fps, "Frame rate written to the output")
+      ->check(CLI::PositiveNumber);
+  app->add_flag("--no-cache-write", cmd->no_cache_write,
+                "Do not write the index cache into the actor package");
+  auto binding = BindOptions(app, &cmd->options);
+  return [cmd, binding] { return Run(*cmd, *binding); };
+}
+
+}  // namespace hmc

@@ -1,0 +1,592 @@
+#include "blending/lgi_solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+
+namespace hmc {
+
+void SolveOptions::Register(OptionFields* fields) {
+  fields->SetGroup("solve");
+  fields->Add("outside_slack_mm", &outside_slack_mm,
+              "outside the data, simplices this close to the closest one "
+              "compete by the neighbour criterion (mm)");
+  fields->Add("temporal_preference", &temporal_preference,
+              "candidates within this fraction of the best neighbour cost "
+              "compete by shapes shared with the previous frame (0 = off)");
+  fields->Add("tie_mm2", &tie_mm2,
+              "candidates whose neighbour costs differ by at most this are "
+              "tied; ties go to agreement with the neighbours' choices, then "
+              "to the least motion (mm^2)");
+  fields->Add("smooth_window", &smooth_window,
+              "frames of the centred moving average of shape weights "
+              "(0 = off)");
+  fields->Add("min_bundle_fraction", &min_bundle_fraction,
+              "frames with fewer observed bundles (fraction of markers) are "
+              "flagged bad and skipped");
+  fields->SetGroup("");
+}
+
+bool SolveOptions::Check() const {
+  auto fail = [](const char* what) {
+    spdlog::error("solve options: {}", what);
+    return false;
+  };
+  if (!(outside_slack_mm >= 0)) return fail("outside_slack_mm must be >= 0");
+  if (!(temporal_preference >= 0)) {
+    return fail("temporal_preference must be >= 0");
+  }
+  if (!(tie_mm2 >= 0)) {
+    return fail("tie_mm2 must be >= 0");
+  }
+  if (smooth_window < 0) return fail("smooth_window must be >= 0");
+  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
+    return fail("min_bundle_fraction must be in [0, 1]");
+  }
+  return true;
+}
+
+std::string SolveSummary::BriefReport() const {
+  return fmt::format(
+      "{} frames ({} bad); bundles: {} inside, {} projected (max {:.3f} mm), "
+      "{} filled",
+      frames, bad_frames, bundles_inside, bundles_projected, max_projection,
+      bundles_filled);
+}
+
+LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
+                     const ShapeIndex& index,
+                     const NaturalNeighbourWeights& nn,
+                     const IndexOptions& index_options,
+                     const SolveOptions& options)
+    : neutral_(neutral),
+      data_(data),
+      index_(index),
+      nn_(nn),
+      index_options_(index_options),
+      options_(options) {
+  HMC_CHECK(neutral.NumVertices() == data.num_vertices);
+  HMC_CHECK(static_cast<int>(index.bundles.size()) == data.num_bundles);
+  HMC_CHECK(static_cast<int>(index.represented.size()) == data.num_bundles);
+  HMC_CHECK(nn.weights.rows() == data.num_vertices);
+  HMC_CHECK(nn.weights.cols() == data.num_bundles);
+  HMC_CHECK(static_cast<int>(nn.site_neighbours.size()) == data.num_bundles);
+  const int K = data.num_bundles;
+  for (int k = 0; k < K; ++k) marker_index_[data.bundle_names[k]] = k;
+  neighbours_.resize(K);
+  site_disp_.resize(K);
+  gram_.resize(K);
+  ParallelFor(0, K, [&](int64_t k) {
+    for (int j : nn.site_neighbours[k]) {
+      if (j != k) neighbours_[k].push_back(j);
+    }
+    const BundleIndex& b = index.bundles[k];
+    const int P = b.NumPoints();
+    const int J = static_cast<int>(neighbours_[k].size());
+    Eigen::MatrixXd d = Eigen::MatrixXd::Zero(P, 3 * J);
+    for (int i = 0; i < P; ++i) {
+      const int shape = b.point_shapes()[i];
+      if (shape < 0) continue;
+      for (int jj = 0; jj < J; ++jj) {
+        d.block<1, 3>(i, 3 * jj) =
+            data.SiteDisplacement(shape, neighbours_[k][jj]).transpose();
+      }
+    }
+    gram_[k] = d * d.transpose();
+    site_disp_[k] = std::move(d);
+  });
+  std::vector<std::vector<std::pair<int, double>>> region(K);
+  for (int v = 0; v < nn.weights.rows(); ++v) {
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
+             nn.weights, v);
+         it; ++it) {
+      if (it.value() > 0) region[it.col()].emplace_back(v, it.value());
+    }
+  }
+  point_motion_.resize(K);
+  ParallelFor(0, K, [&](int64_t k) {
+    const BundleIndex& b = index.bundles[k];
+    point_motion_[k].assign(b.NumPoints(), 0.0);
+    for (int i = 0; i < b.NumPoints(); ++i) {
+      const int shape = b.point_shapes()[i];
+      if (shape < 0) continue;
+      double motion = 0;
+      for (const auto& [v, lambda] : region[k]) {
+        const float* d = data.VertexDisplacements(v) + 3 * shape;
+        motion += lambda * std::sqrt(double(d[0]) * d[0] + double(d[1]) * d[1] +
+                                     double(d[2]) * d[2]);
+      }
+      point_motion_[k][i] = motion;
+    }
+  });
+}
+
+Vec3 LgiSolver::Predict(int k, const IndexCandidate& candidate, int j) const {
+  const BundleIndex& b = index_.bundles[k];
+  const CloudSimplex& s = b.simplices()[candidate.simplex];
+  Vec3 x = data_.site_neutral.row(j).transpose();
+  for (int i = 0; i < s.size; ++i) {
+    const int shape = b.point_shapes()[s.corner[i]];
+    if (shape >= 0 && candidate.weights[i] != 0.0) {
+      x += candidate.weights[i] * data_.SiteDisplacement(shape, j);
+    }
+  }
+  return x;
+}
+
+void LgiSolver::Assign(int k, const IndexCandidate& candidate, double cost,
+                       BundleSolve* out) const {
+  const BundleIndex& b = index_.bundles[k];
+  out->simplex = candidate.simplex;
+  out->cost = cost;
+  out->corner_shapes.clear();
+  out->weights.clear();
+  const CloudSimplex& s = b.simplices()[candidate.simplex];
+  for (int i = 0; i < s.size; ++i) {
+    const int shape = b.point_shapes()[s.corner[i]];
+    out->corner_shapes.push_back(shape);
+    if (shape >= 0 && candidate.weights[i] > 0) {
+      out->weights.emplace_back(shape, candidate.weights[i]);
+    }
+  }
+  std::sort(out->weights.begin(), out->weights.end());
+}
+
+FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
+                                 const JawPose& jaw,
+                                 const FrameSolve* previous) const {
+  const int K = data_.num_bundles;
+  FrameSolve f;
+  f.frame = bundles.frame;
+  f.jaw = jaw;
+  f.bundles.resize(K);
+  std::vector<Vec3> unskinned(K, Vec3::Zero());
+  std::vector<char> observed(K, 0);
+  int num_observed = 0;
+  for (const auto& [name, p] : bundles.bundles) {
+    const auto it = marker_index_.find(name);
+    if (it == marker_index_.end()) {
+      ++f.unknown_markers;
+      continue;
+    }
+    const int k = it->second;
+    observed[k] = 1;
+    ++num_observed;
+    f.bundles[k].observed = p;
+    unskinned[k] = UnskinBundle(data_, k, jaw, p);
+  }
+  const int needed = std::max(
+      1, static_cast<int>(std::ceil(options_.min_bundle_fraction * K - 1e-9)));
+  if (num_observed < needed) {
+    f.ok = false;
+    f.reason = fmt::format("only {} of {} bundles observed (need {})",
+                           num_observed, K, needed);
+    return f;
+  }
+
+  std::vector<std::vector<IndexCandidate>> ties(K);
+  std::vector<std::vector<double>> tie_costs(K);
+  std::vector<std::vector<int>> tie_shared(K);
+  ParallelFor(0, K, [&](int64_t k) {
+    if (!observed[k]) return;
+    BundleSolve& out = f.bundles[k];
+    const BundleIndex& b = index_.bundles[k];
+    IndexQuery q =
+        b.Query(unskinned[k], options_.outside_slack_mm, index_options_);
+    // Cloud points within the pruning thresholds also compete: a shape
+    // merged into a point (or pruned into the neutral) may put the bundle up
+    // to that far from it, so the point is as valid an explanation as the
+    // simplices that contain the bundle.
+    const double snap =
+        std::max(index_options_.merge_mm, index_options_.region_tag_mm);
+    for (int i = 0; i < b.NumPoints(); ++i) {
+      const double d = (b.points().row(i).transpose() - unskinned[k]).norm();
+      if (d > snap || d <= index_options_.on_data_mm) continue;
+      IndexCandidate cand;
+      cand.simplex = b.PointSimplex(i);
+      cand.weights = {1, 0, 0, 0};
+      cand.point = b.points().row(i).transpose();
+      cand.distance = d;
+      q.candidates.push_back(cand);
+    }
+    out.num_candidates = static_cast<int>(q.candidates.size());
+    if (q.candidates.empty()) return;  // filled from the neighbours below
+    // Neighbour criterion sum_j |x0(s_j) + sum_i w_i D_i(s_j) - p*_j|^2 as
+    // c + 2 w.g + w' G w over the candidate's corners (G precomputed; a
+    // missing neighbour's terms are removed).
+    const std::vector<int>& nbrs = neighbours_[k];
+    const int J = static_cast<int>(nbrs.size());
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(3 * J);
+    bool all_observed = true;
+    for (int jj = 0; jj < J; ++jj) {
+      const int j = nbrs[jj];
+      if (!observed[j]) {
+        all_observed = false;
+        continue;
+      }
+      a.segment<3>(3 * jj) = data_.site_neutral.row(j).transpose() - unskinned[j];
+    }
+    const Eigen::MatrixXd& disp = site_disp_[k];
+    Eigen::MatrixXd gram_missing;
+    if (!all_observed) {
+      gram_missing = gram_[k];
+      for (int jj = 0; jj < J; ++jj) {
+        if (observed[nbrs[jj]]) continue;
+        const auto block = disp.middleCols(3 * jj, 3);
+        gram_missing -= block * block.transpose();
+      }
+    }
+    const Eigen::MatrixXd& gram = all_observed ? gram_[k] : gram_missing;
+    const Eigen::VectorXd g = disp * a;
+    const double c0 = a.squaredNorm();
+    std::vector<double> cost(q.candidates.size(), 0.0);
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t ci = 0; ci < q.candidates.size(); ++ci) {
+      const IndexCandidate& cand = q.candidates[ci];
+      const CloudSimplex& s = b.simplices()[cand.simplex];
+      double e = c0;
+      for (int i = 0; i < s.size; ++i) {
+        const double wi = cand.weights[i];
+        if (wi == 0.0) continue;
+        e += 2 * wi * g[s.corner[i]];
+        for (int l = 0; l < s.size; ++l) {
+          e += wi * cand.weights[l] * gram(s.corner[i], s.corner[l]);
+        }
+      }
+      e = std::max(e, 0.0) + cand.distance * cand.distance;
+      cost[ci] = e;
+      best = std::min(best, e);
+    }
+    // The winding-number preference: among near-best candidates, the one
+    // sharing the most shapes with the previous frame's choice.
+    // It applies while the bundle is still on the previous frame's simplex
+    // (that simplex is a candidate now): across a discontinuity (a cut,
+    // unrelated frames) the frames are solved independently.
+    const std::vector<int>* prev_shapes = nullptr;
+    if (previous != nullptr && options_.temporal_preference > 0 &&
+        !previous->bundles[k].corner_shapes.empty()) {
+      const int prev_simplex = previous->bundles[k].simplex;
+      for (const IndexCandidate& cand : q.candidates) {
+        if (cand.simplex == prev_simplex) {
+          prev_shapes = &previous->bundles[k].corner_shapes;
+          break;
+        }
+      }
+    }
+    const double limit =
+        prev_shapes
+            ? best * (1 + options_.temporal_preference) + options_.tie_mm2
+            : best + options_.tie_mm2;
+    std::vector<int> shared(q.candidates.size(), 0);
+    int chosen = -1;
+    for (size_t c = 0; c < q.candidates.size(); ++c) {
+      if (cost[c] > limit) continue;
+      if (prev_shapes) {
+        const CloudSimplex& s = b.simplices()[q.candidates[c].simplex];
+        for (int i = 0; i < s.size; ++i) {
+          const int shape = b.point_shapes()[s.corner[i]];
+          shared[c] += std::count(prev_shapes->begin(), prev_shapes->end(),
+                                  shape) > 0;
+        }
+      }
+      // Candidates are sorted by simplex id, so ties keep the lowest id.
+      if (chosen < 0 || shared[c] > shared[chosen] ||
+          (shared[c] == shared[chosen] && cost[c] < cost[chosen])) {
+        chosen = static_cast<int>(c);
+      }
+    }
+    // The exact tie group (cost within tie_mm2 of the best): settled below,
+    // once every bundle has a first choice, if its blends differ.
+    for (size_t c = 0; c < q.candidates.size(); ++c) {
+      if (cost[c] <= best + options_.tie_mm2) {
+        ties[k].push_back(q.candidates[c]);
+        tie_costs[k].push_back(cost[c]);
+        tie_shared[k].push_back(shared[c]);
+      }
+    }
+    out.status = q.inside ? BundleSolve::Status::kInside
+                          : BundleSolve::Status::kProjected;
+    out.distance = q.distance;
+    Assign(static_cast<int>(k), q.candidates[chosen], cost[chosen], &out);
+  });
+
+  // Ties: a bundle whose position and neighbours cannot tell candidates
+  // apart (a shape that moves only the skin between bundles leaves them all
+  // where the neutral has them) takes the candidate whose points stand for
+  // the shapes the untied bundles of the frame chose (the frame's consensus),
+  // then the one moving its region least.
+  auto same_blend = [](const std::vector<std::pair<int, double>>& a,
+                       const std::vector<std::pair<int, double>>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i) {
+      if (a[i].first != b[i].first ||
+          std::abs(a[i].second - b[i].second) > 1e-12) {
+        return false;
+      }
+    }
+    return true;
+  };
+  std::vector<char> tied(K, 0);
+  ParallelFor(0, K, [&](int64_t k) {
+    if (ties[k].size() < 2) return;
+    BundleSolve first_blend, probe;
+    Assign(static_cast<int>(k), ties[k][0], 0.0, &first_blend);
+    for (const IndexCandidate& cand : ties[k]) {
+      Assign(static_cast<int>(k), cand, 0.0, &probe);
+      if (!same_blend(probe.weights, first_blend.weights)) {
+        tied[k] = 1;
+        return;
+      }
+    }
+  });
+  std::vector<double> consensus(data_.num_shapes + 1, 0.0);  // [shape + 1]
+  for (int k = 0; k < K; ++k) {
+    const auto st = f.bundles[k].status;
+    if (tied[k] || (st != BundleSolve::Status::kInside &&
+                    st != BundleSolve::Status::kProjected)) {
+      continue;
+    }
+    const BundleIndex& b = index_.bundles[k];
+    const CloudSimplex& s = b.simplices()[f.bundles[k].simplex];
+    // The chosen candidate's weights per corner, recovered from the shapes.
+    for (int i = 0; i < s.size; ++i) {
+      const int shape = b.point_shapes()[s.corner[i]];
+      double w = 0;
+      if (shape < 0) {
+        w = 1.0;
+        for (const auto& [n, wn] : f.bundles[k].weights) w -= wn;
+      } else {
+        for (const auto& [n, wn] : f.bundles[k].weights) {
+          if (n == shape) w = wn;
+        }
+      }
+      for (int r : index_.represented[k][s.corner[i]]) consensus[r + 1] += w;
+    }
+  }
+  ParallelFor(0, K, [&](int64_t k) {
+    if (!tied[k]) return;
+    const BundleIndex& b = index_.bundles[k];
+    int best_t = -1;
+    double best_score = 0, best_motion = 0;
+    for (size_t t = 0; t < ties[k].size(); ++t) {
+      const IndexCandidate& cand = ties[k][t];
+      const CloudSimplex& s = b.simplices()[cand.simplex];
+      double score = 0, motion = 0;
+      for (int i = 0; i < s.size; ++i) {
+        const double w = cand.weights[i];
+        motion += w * point_motion_[k][s.corner[i]];
+        double support = 0;
+        // The neutral carries no evidence ("nothing moved" is what most
+        // bundles see of any local shape), so only shapes count.
+        for (int r : index_.represented[k][s.corner[i]]) {
+          if (r >= 0) support = std::max(support, consensus[r + 1]);
+        }
+        score += w * support;
+      }
+      bool better = best_t < 0 || score > best_score + 1e-9;
+      if (!better && score >= best_score - 1e-9) {
+        const int sh = tie_shared[k][t], best_sh = tie_shared[k][best_t];
+        better = sh > best_sh ||
+                 (sh == best_sh && motion < best_motion - 1e-12);
+      }
+      if (better) {
+        best_t = static_cast<int>(t);
+        best_score = score;
+        best_motion = motion;
+      }
+    }
+    Assign(static_cast<int>(k), ties[k][best_t], tie_costs[k][best_t],
+           &f.bundles[k]);
+  });
+
+  // Missing bundles: the neighbours' weights, averaged by inverse squared
+  // distance between the sites on the neutral.
+  std::vector<int> solved;
+  for (int k = 0; k < K; ++k) {
+    if (f.bundles[k].status == BundleSolve::Status::kInside ||
+        f.bundles[k].status == BundleSolve::Status::kProjected) {
+      solved.push_back(k);
+    }
+  }
+  for (int k = 0; k < K; ++k) {
+    BundleSolve& out = f.bundles[k];
+    if (out.status != BundleSolve::Status::kUnused) continue;
+    std::vector<int> from;
+    for (int j : nn_.site_neighbours[k]) {
+      const auto st = f.bundles[j].status;
+      if (j != k && (st == BundleSolve::Status::kInside ||
+                     st == BundleSolve::Status::kProjected)) {
+        from.push_back(j);
+      }
+    }
+    if (from.empty()) {
+      // No solved natural neighbour: the nearest solved bundle.
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int j : solved) {
+        const double d =
+            (data_.site_neutral.row(j) - data_.site_neutral.row(k)).norm();
+        if (d < nearest) {
+          nearest = d;
+          from = {j};
+        }
+      }
+    }
+    std::map<int, double> acc;
+    double total = 0;
+    for (int j : from) {
+      const double d2 =
+          (data_.site_neutral.row(j) - data_.site_neutral.row(k)).squaredNorm();
+      const double w = 1.0 / std::max(d2, 1e-12);
+      total += w;
+      for (const auto& [shape, wn] : f.bundles[j].weights) acc[shape] += w * wn;
+    }
+    out.status = BundleSolve::Status::kFilled;
+    for (const auto& [shape, w] : acc) out.weights.emplace_back(shape, w / total);
+  }
+  f.ok = true;
+  return f;
+}
+
+MatX3d LgiSolver::Blend(FrameSolve* frame) const {
+  const int V = data_.num_vertices, N = data_.num_shapes;
+  MatX3d out(V, 3);
+  const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
+  const Rigid3 t = rig ? rig->Transform(frame->jaw) : Rigid3::Identity();
+  const Mat3 r = t.linear();
+  const Vec3 tr = t.translation();
+  ParallelFor(
+      0, V,
+      [&](int64_t v) {
+        Vec3 x = neutral_.V.row(v).transpose();
+        const float* b = data_.VertexDisplacements(static_cast<int>(v));
+        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
+                 nn_.weights, v);
+             it; ++it) {
+          const double lambda = it.value();
+          for (const auto& [n, w] : frame->bundles[it.col()].weights) {
+            const double c = lambda * w;
+            const float* bn = b + static_cast<size_t>(n) * 3;
+            x[0] += c * bn[0];
+            x[1] += c * bn[1];
+            x[2] += c * bn[2];
+          }
+        }
+        if (rig) {
+          const double wv = rig->weights[v];
+          x = (1.0 - wv) * x + wv * (r * x + tr);
+        }
+        out.row(v) = x.transpose();
+      },
+      512);
+  (void)N;
+  for (int k = 0; k < data_.num_bundles; ++k) {
+    BundleSolve& b = frame->bundles[k];
+    if (b.status == BundleSolve::Status::kInside ||
+        b.status == BundleSolve::Status::kProjected) {
+      b.residual =
+          (EvaluateSurfacePoint(data_.sites[k], neutral_.F, out) - b.observed)
+              .norm();
+    }
+  }
+  return out;
+}
+
+void LgiSolver::SmoothWeights(int window, std::vector<FrameSolve>* frames) {
+  if (window <= 1 || frames->empty()) return;
+  const int half = window / 2;
+  const int F = static_cast<int>(frames->size());
+  const int K = static_cast<int>((*frames)[0].bundles.size());
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> original(F);
+  for (int f = 0; f < F; ++f) {
+    for (const auto& b : (*frames)[f].bundles) original[f].push_back(b.weights);
+  }
+  ParallelFor(0, K, [&](int64_t k) {
+    for (int f = 0; f < F; ++f) {
+      if (!(*frames)[f].ok) continue;
+      std::map<int, double> acc;
+      int count = 0;
+      for (int g = std::max(0, f - half); g <= std::min(F - 1, f + half); ++g) {
+        if (!(*frames)[g].ok) continue;
+        ++count;
+        for (const auto& [shape, w] : original[g][k]) acc[shape] += w;
+      }
+      auto& weights = (*frames)[f].bundles[k].weights;
+      weights.clear();
+      for (const auto& [shape, w] : acc) weights.emplace_back(shape, w / count);
+    }
+  });
+}
+
+SolveResult LgiSolver::SolveSequence(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors) const {
+  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
+  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
+  const int F = static_cast<int>(frames.size());
+  SolveResult result;
+  result.frames.resize(F);
+  const FrameSolve* previous = nullptr;
+  {
+    Progress progress("lgi choice", F);
+    for (int f = 0; f < F; ++f) {
+      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
+      if (!frame_errors.empty() && !frame_errors[f].empty()) {
+        FrameSolve& bad = result.frames[f];
+        bad.frame = frames[f].frame;
+        bad.jaw = pose;
+        bad.bundles.resize(data_.num_bundles);
+        bad.reason = frame_errors[f];
+        progress.Advance();
+        continue;
+      }
+      result.frames[f] = SolveFrame(frames[f], pose, previous);
+      if (result.frames[f].ok) previous = &result.frames[f];
+      progress.Advance();
+    }
+  }
+  SmoothWeights(options_.smooth_window, &result.frames);
+  Progress progress("lgi blend", F);
+  result.meshes.resize(F);
+  const MatX3d* last_good = nullptr;
+  SolveSummary& s = result.summary;
+  s.frames = F;
+  for (int f = 0; f < F; ++f) {
+    FrameSolve& fs = result.frames[f];
+    if (fs.ok) {
+      result.meshes[f] = Blend(&fs);
+      last_good = &result.meshes[f];
+    } else {
+      ++s.bad_frames;
+      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
+      if (last_good) {
+        result.meshes[f] = *last_good;
+      } else {
+        result.meshes[f] = data_.jaw_rig
+                               ? Skin(*data_.jaw_rig, fs.jaw, neutral_.V)
+                               : neutral_.V;
+      }
+    }
+    for (const auto& b : fs.bundles) {
+      switch (b.status) {
+        case BundleSolve::Status::kInside: ++s.bundles_inside; break;
+        case BundleSolve::Status::kProjected:
+          ++s.bundles_projected;
+          s.max_projection = std::max(s.max_projection, b.distance);
+          break;
+        case BundleSolve::Status::kFilled: ++s.bundles_filled; break;
+        case BundleSolve::Status::kUnused: break;
+      }
+    }
+    progress.Advance();
+  }
+  return result;
+}
+
+}  // namespace hmc

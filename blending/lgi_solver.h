@@ -1,0 +1,154 @@
+// The per-frame solve of local geometric indexing (paper, "Local Geometric
+// Indexing", "Choosing Tetrahedra", "Jaw Articulation", "Temporal
+// Smoothing"; DESIGN.md section 4, steps 4-9):
+//   1. unskin each observed bundle with the frame's jaw pose;
+//   2. query its index: every simplex containing it, else the closest ones;
+//   3. choose among the candidates by the neighbour criterion (how close the
+//      candidate's blended shape puts the natural-neighbour bundles' surface
+//      points to where they were observed), within a slack preferring the
+//      simplices that share shapes with the previous frame's choice;
+//   4. fill missing bundles from their neighbours;
+//   5. optionally average each bundle's shape weights over a centred window;
+//   6. blend x*(v) = x0(v) + sum_k lambda_k(v) sum_n w_{k,n} b*_n(v) and skin
+//      with the frame's jaw pose (linear blend skinning).
+#pragma once
+
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "blending/natural_neighbour.h"
+#include "core/frame_data.h"
+#include "core/options.h"
+#include "indexing/index_options.h"
+#include "indexing/shape_data.h"
+#include "indexing/shape_index.h"
+
+namespace hmc {
+
+struct SolveOptions {
+  double outside_slack_mm = 0.1;  // outside the data: simplices whose closest
+                                  // point is within this of the closest one
+                                  // compete by the neighbour criterion plus
+                                  // their own squared distance (mm)
+  double temporal_preference = 0.0;  // animation: while the previous
+                                      // frame's simplex still contains the
+                                      // bundle, candidates whose neighbour
+                                      // cost is within this fraction of the
+                                      // best compete by the number of shapes
+                                      // shared with that choice (0 = off)
+  double tie_mm2 = 1e-10;  // candidates whose neighbour costs differ by at
+                           // most this are tied (mm^2); ties go to the one
+                           // agreeing most with the neighbours' choices,
+                           // then to the least motion over the region
+  int smooth_window = 0;  // frames of the centred moving average of the
+                          // shape weights (0 or 1 = off; even is rounded up)
+  double min_bundle_fraction = 0.5;  // a frame with fewer observed bundles
+                                     // than this fraction of the markers is
+                                     // bad: flagged, previous good mesh kept
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// One bundle in one frame.
+struct BundleSolve {
+  enum class Status { kInside, kProjected, kFilled, kUnused };
+  Status status = Status::kUnused;
+  Vec3 observed = Vec3::Zero();  // head space (when observed)
+  double distance = 0.0;  // how far the unskinned bundle was projected (mm)
+  int num_candidates = 0;
+  int simplex = -1;                  // chosen simplex of its index
+  std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
+  std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
+                                                // shape, neutral omitted
+  double cost = 0.0;         // neighbour criterion of the choice (mm^2)
+  double residual = 0.0;     // |output surface at s_k - observed| (mm)
+};
+
+struct FrameSolve {
+  int frame = 0;
+  bool ok = false;
+  std::string reason;  // why a bad frame was skipped
+  JawPose jaw;
+  std::vector<BundleSolve> bundles;  // K, in marker order
+  int unknown_markers = 0;           // names not in the actor (ignored)
+};
+
+struct SolveSummary {
+  int frames = 0;
+  int bad_frames = 0;
+  int64_t bundles_inside = 0;
+  int64_t bundles_projected = 0;
+  int64_t bundles_filled = 0;
+  double max_projection = 0.0;  // mm
+  std::string BriefReport() const;
+};
+
+struct SolveResult {
+  std::vector<MatX3d> meshes;  // one V x 3 mesh per input frame (mm)
+  std::vector<FrameSolve> frames;
+  SolveSummary summary;
+};
+
+class LgiSolver {
+ public:
+  // All referenced data must outlive the solver. neutral: the actor's
+  // neutral mesh (V x 3 positions in mm, triangles).
+  LgiSolver(const TriMesh& neutral, const ShapeData& data,
+            const ShapeIndex& index, const NaturalNeighbourWeights& nn,
+            const IndexOptions& index_options, const SolveOptions& options);
+
+  // Steps 1-4 for one frame. previous: the previous frame's solve (its
+  // choices steer the temporal preference), or nullptr.
+  FrameSolve SolveFrame(const BundleFrame& bundles, const JawPose& jaw,
+                        const FrameSolve* previous) const;
+
+  // Step 6 for one frame's weights; also fills each bundle's residual.
+  MatX3d Blend(FrameSolve* frame) const;
+
+  // Steps 1-6 over a sequence. jaw: one pose per frame (empty: zero pose).
+  // frame_errors: empty, or one entry per frame; a non-empty entry marks the
+  // frame bad with that reason (e.g. no jaw pose). Bad frames repeat the
+  // previous good mesh (the jaw-skinned neutral before the first good one).
+  SolveResult SolveSequence(
+      const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+      const std::vector<std::string>& frame_errors = {}) const;
+
+  // Centred moving average of each bundle's weights over `window` frames
+  // (bad frames excluded); relative to the jaw-skinned neutral, since the
+  // blend skins each frame with its own pose afterwards.
+  static void SmoothWeights(int window, std::vector<FrameSolve>* frames);
+
+  // The unskinned position candidate `candidate` of bundle k's index
+  // predicts for bundle j's surface point: x0(s_j) + sum_i w_i b*_i(s_j).
+  Vec3 Predict(int k, const IndexCandidate& candidate, int j) const;
+
+  int NumBundles() const { return data_.num_bundles; }
+
+ private:
+  // Sets out's choice (simplex, corner shapes, weights, cost).
+  void Assign(int k, const IndexCandidate& candidate, double cost,
+              BundleSolve* out) const;
+
+  const TriMesh& neutral_;
+  const ShapeData& data_;
+  const ShapeIndex& index_;
+  const NaturalNeighbourWeights& nn_;
+  IndexOptions index_options_;
+  SolveOptions options_;
+  std::unordered_map<std::string, int> marker_index_;
+  // Per bundle k, for the neighbour criterion as a quadratic form in the
+  // candidate's weights: neighbours_[k] (its natural neighbours, without k),
+  // site_disp_[k] (P x 3J: cloud point i's unskinned displacement at each
+  // neighbour's surface point) and gram_[k] = site_disp_ site_disp_^T (P x P).
+  std::vector<std::vector<int>> neighbours_;
+  std::vector<Eigen::MatrixXd> site_disp_;
+  std::vector<Eigen::MatrixXd> gram_;
+  // Per bundle and cloud point: its shape's motion over the bundle's region,
+  // sum_v lambda_k(v) |b*_n(v)| (mm), the last tie-breaker.
+  std::vector<std::vector<double>> point_motion_;
+};
+
+}  // namespace hmc

@@ -1,0 +1,499 @@
+#include "indexing/bundle_index.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+#include <utility>
+
+#include "core/error.h"
+#include "core/mesh.h"
+#include "indexing/binary_io.h"
+
+namespace hmc {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+struct CellRange {
+  std::array<int, 3> lo, hi;
+};
+
+// Per-thread visit marks so that a query tests each simplex once even when
+// it is listed in several cells, without allocating per query.
+struct VisitMarks {
+  std::vector<uint32_t> marks;
+  uint32_t epoch = 0;
+
+  void Begin(size_t n) {
+    if (marks.size() < n) marks.assign(n, 0);
+    if (++epoch == 0) {
+      std::fill(marks.begin(), marks.end(), 0);
+      epoch = 1;
+    }
+  }
+  bool Visit(uint32_t i) {
+    if (marks[i] == epoch) return false;
+    marks[i] = epoch;
+    return true;
+  }
+};
+
+// Inside test of a tetrahedron: convex barycentrics within tolerance, clamped
+// and renormalised.
+bool TetContains(const SimplexCorners& s, const Vec3& p, double tolerance,
+                 std::array<double, 4>* weights) {
+  if (!TetBarycentric(s.x[0], s.x[1], s.x[2], s.x[3], p, weights)) {
+    return false;
+  }
+  if (*std::min_element(weights->begin(), weights->end()) < -tolerance) {
+    return false;
+  }
+  double sum = 0;
+  for (double& w : *weights) {
+    w = std::max(w, 0.0);
+    sum += w;
+  }
+  for (double& w : *weights) w /= sum;
+  return true;
+}
+
+}  // namespace
+
+SimplexCorners BundleIndex::Corners(int simplex) const {
+  const CloudSimplex& s = simplices_[simplex];
+  SimplexCorners c;
+  c.size = s.size;
+  for (int i = 0; i < s.size; ++i) {
+    c.x[i] = points_.row(s.corner[i]).transpose();
+  }
+  return c;
+}
+
+BundleIndex BundleIndex::Build(const MatX3d& points,
+                               std::vector<int> point_shapes,
+                               const IndexOptions& options) {
+  const int P = static_cast<int>(points.rows());
+  HMC_CHECK(P >= 1 && P < 65535);
+  HMC_CHECK(static_cast<int>(point_shapes.size()) == P);
+  BundleIndex index;
+  index.points_ = points;
+  index.point_shapes_ = std::move(point_shapes);
+
+  Eigen::MatrixXd d2(P, P);
+  for (int i = 0; i < P; ++i) {
+    for (int j = 0; j < P; ++j) {
+      d2(i, j) = (points.row(i) - points.row(j)).squaredNorm();
+    }
+  }
+  const double max_edge2 =
+      options.max_edge_mm > 0 ? options.max_edge_mm * options.max_edge_mm
+                              : kInf;
+  auto x = [&](int i) -> Vec3 { return points.row(i).transpose(); };
+  // Which lower-dimensional simplices are already faces of kept ones: only
+  // the others are kept, so they add coverage without duplicating.
+  std::vector<uint8_t> covered_triangle(static_cast<size_t>(P) * P * P, 0);
+  std::vector<uint8_t> covered_edge(static_cast<size_t>(P) * P, 0);
+  auto tri_key = [P](int i, int j, int k) {
+    return (static_cast<size_t>(i) * P + j) * P + k;
+  };
+
+  for (int i = 0; i < P; ++i) {
+    for (int j = i + 1; j < P; ++j) {
+      if (d2(i, j) > max_edge2) continue;
+      for (int k = j + 1; k < P; ++k) {
+        if (d2(i, k) > max_edge2 || d2(j, k) > max_edge2) continue;
+        for (int l = k + 1; l < P; ++l) {
+          if (d2(i, l) > max_edge2 || d2(j, l) > max_edge2 ||
+              d2(k, l) > max_edge2) {
+            continue;
+          }
+          const double q = TetQuality(x(i), x(j), x(k), x(l));
+          if (q < options.min_tet_quality || q == 0.0) continue;
+          CloudSimplex s;
+          s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j),
+                      static_cast<uint16_t>(k), static_cast<uint16_t>(l)};
+          s.size = 4;
+          index.simplices_.push_back(s);
+          covered_triangle[tri_key(i, j, k)] = 1;
+          covered_triangle[tri_key(i, j, l)] = 1;
+          covered_triangle[tri_key(i, k, l)] = 1;
+          covered_triangle[tri_key(j, k, l)] = 1;
+        }
+      }
+    }
+  }
+  index.num_tets_ = static_cast<int64_t>(index.simplices_.size());
+  int64_t triangles = 0, edges = 0;
+  for (int i = 0; i < P; ++i) {
+    for (int j = i + 1; j < P; ++j) {
+      for (int k = j + 1; k < P; ++k) {
+        if (covered_triangle[tri_key(i, j, k)]) {
+          covered_edge[i * P + j] = covered_edge[i * P + k] =
+              covered_edge[j * P + k] = 1;
+          continue;
+        }
+        if (d2(i, j) > max_edge2 || d2(i, k) > max_edge2 ||
+            d2(j, k) > max_edge2) {
+          continue;
+        }
+        const double q = TriangleQuality(x(i), x(j), x(k));
+        if (q < options.min_triangle_quality || q == 0.0) continue;
+        CloudSimplex s;
+        s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j),
+                    static_cast<uint16_t>(k), 0};
+        s.size = 3;
+        index.simplices_.push_back(s);
+        ++triangles;
+        covered_edge[i * P + j] = covered_edge[i * P + k] =
+            covered_edge[j * P + k] = 1;
+      }
+    }
+  }
+  for (int i = 0; i < P; ++i) {
+    for (int j = i + 1; j < P; ++j) {
+      if (covered_edge[i * P + j]) {
+        continue;
+      }
+      if (d2(i, j) > max_edge2 || d2(i, j) == 0.0) continue;
+      CloudSimplex s;
+      s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j), 0, 0};
+      s.size = 2;
+      index.simplices_.push_back(s);
+      ++edges;
+    }
+  }
+  // Every point is also a simplex of its own (the last P simplices), so a
+  // solve can snap to a point (see PointSimplex).
+  for (int i = 0; i < P; ++i) {
+    CloudSimplex s;
+    s.corner = {static_cast<uint16_t>(i), 0, 0, 0};
+    s.size = 1;
+    index.simplices_.push_back(s);
+  }
+
+  BundleIndexStats& st = index.stats_;
+  st.points = P;
+  st.tets_candidate = static_cast<int64_t>(P) * (P - 1) * (P - 2) * (P - 3) / 24;
+  st.tets_kept = index.num_tets_;
+  st.triangles_kept = triangles;
+  st.edges_kept = edges;
+  index.BuildGrid(options);
+  return index;
+}
+
+void BundleIndex::BuildGrid(const IndexOptions& options) {
+  const Eigen::Matrix<double, 2, 3> box = BoundingBox(points_);
+  const Vec3 extent = (box.row(1) - box.row(0)).transpose();
+  const double pad = std::max(options.on_data_mm, 1e-9 * extent.maxCoeff());
+  const Vec3 lo = box.row(0).transpose() - Vec3::Constant(pad);
+  const Vec3 size = extent + Vec3::Constant(2 * pad);
+  grid_origin_ = lo;
+
+  const size_t S = simplices_.size();
+  std::vector<Eigen::Matrix<double, 2, 3>> boxes(S);
+  for (size_t i = 0; i < S; ++i) {
+    const CloudSimplex& s = simplices_[i];
+    Vec3 mn = points_.row(s.corner[0]).transpose(), mx = mn;
+    for (int c = 1; c < s.size; ++c) {
+      mn = mn.cwiseMin(points_.row(s.corner[c]).transpose());
+      mx = mx.cwiseMax(points_.row(s.corner[c]).transpose());
+    }
+    boxes[i].row(0) = (mn - Vec3::Constant(pad)).transpose();
+    boxes[i].row(1) = (mx + Vec3::Constant(pad)).transpose();
+  }
+  auto range_of = [&](const Eigen::Matrix<double, 2, 3>& b, double h,
+                      const std::array<int, 3>& n) {
+    CellRange r;
+    for (int a = 0; a < 3; ++a) {
+      r.lo[a] = std::clamp(
+          static_cast<int>(std::floor((b(0, a) - grid_origin_[a]) / h)), 0,
+          n[a] - 1);
+      r.hi[a] = std::clamp(
+          static_cast<int>(std::floor((b(1, a) - grid_origin_[a]) / h)), 0,
+          n[a] - 1);
+    }
+    return r;
+  };
+  const double budget =
+      options.grid_entries_per_element * static_cast<double>(S);
+  auto layout = [&](int n_max) {
+    const double h = size.maxCoeff() / n_max;
+    std::array<int, 3> n;
+    for (int a = 0; a < 3; ++a) {
+      n[a] = std::clamp(static_cast<int>(std::ceil(size[a] / h)), 1, n_max);
+    }
+    return std::make_pair(h, n);
+  };
+  auto entries_of = [&](int n_max) {
+    const auto [h, n] = layout(n_max);
+    double entries = 0;
+    for (size_t i = 0; i < S; ++i) {
+      const CellRange r = range_of(boxes[i], h, n);
+      entries += double(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) *
+                 (r.hi[2] - r.lo[2] + 1);
+    }
+    return entries;
+  };
+  // The finest grid within the memory budget (entries grow with the
+  // resolution; bisection over the cells along the longest side).
+  int fine = options.grid_max_cells, coarse = 1;
+  if (entries_of(fine) <= budget) {
+    coarse = fine;
+  } else {
+    while (fine - coarse > 1) {
+      const int mid = (coarse + fine) / 2;
+      (entries_of(mid) <= budget ? coarse : fine) = mid;
+    }
+  }
+  std::tie(cell_size_, grid_n_) = layout(coarse);
+  const size_t cells = static_cast<size_t>(grid_n_[0]) * grid_n_[1] * grid_n_[2];
+  cell_start_.assign(cells + 1, 0);
+  auto cell_id = [&](int x, int y, int z) {
+    return (static_cast<size_t>(z) * grid_n_[1] + y) * grid_n_[0] + x;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<uint32_t> fill;
+    if (pass == 1) {
+      for (size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
+      cell_items_.assign(cell_start_[cells], 0);
+      fill.assign(cell_start_.begin(), cell_start_.end() - 1);
+    }
+    for (size_t i = 0; i < S; ++i) {
+      const CellRange r = range_of(boxes[i], cell_size_, grid_n_);
+      for (int z = r.lo[2]; z <= r.hi[2]; ++z) {
+        for (int y = r.lo[1]; y <= r.hi[1]; ++y) {
+          for (int xx = r.lo[0]; xx <= r.hi[0]; ++xx) {
+            const size_t c = cell_id(xx, y, z);
+            if (pass == 0) {
+              ++cell_start_[c + 1];
+            } else {
+              cell_items_[fill[c]++] = static_cast<uint32_t>(i);
+            }
+          }
+        }
+      }
+    }
+  }
+  stats_.grid_cells = grid_n_;
+  stats_.grid_entries = static_cast<int64_t>(cell_items_.size());
+  stats_.memory_bytes = static_cast<int64_t>(
+      points_.size() * sizeof(double) + point_shapes_.size() * sizeof(int) +
+      simplices_.size() * sizeof(CloudSimplex) +
+      cell_start_.size() * sizeof(uint32_t) +
+      cell_items_.size() * sizeof(uint32_t));
+}
+
+std::array<int, 3> BundleIndex::CellOf(const Vec3& p) const {
+  std::array<int, 3> c;
+  for (int a = 0; a < 3; ++a) {
+    const double f = std::floor((p[a] - grid_origin_[a]) / cell_size_);
+    c[a] = static_cast<int>(
+        std::clamp(std::isfinite(f) ? f : 0.0, 0.0, double(grid_n_[a] - 1)));
+  }
+  return c;
+}
+
+IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
+                              const IndexOptions& options) const {
+  IndexQuery result;
+  const std::array<int, 3> c = CellOf(p);
+  auto items_of = [&](int x, int y, int z, auto&& visit) {
+    const size_t id = (static_cast<size_t>(z) * grid_n_[1] + y) * grid_n_[0] + x;
+    for (uint32_t k = cell_start_[id]; k < cell_start_[id + 1]; ++k) {
+      visit(cell_items_[k]);
+    }
+  };
+  // Inside: the simplices listed in p's cell that contain it (tetrahedra
+  // by their barycentrics; the lower-dimensional ones, kept where no
+  // tetrahedron covers them, by distance).
+  items_of(c[0], c[1], c[2], [&](uint32_t s) {
+    IndexCandidate cand;
+    if (s < num_tets_) {
+      if (!TetContains(Corners(s), p, options.inside_tolerance,
+                       &cand.weights)) {
+        return;
+      }
+    } else {
+      const ClosestPoint cp =
+          ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+      if (cp.distance > options.on_data_mm) return;
+      cand.weights = cp.weights;
+    }
+    cand.simplex = static_cast<int>(s);
+    cand.point = p;
+    result.candidates.push_back(cand);
+  });
+  if (!result.candidates.empty()) {
+    result.inside = true;
+    std::sort(result.candidates.begin(), result.candidates.end(),
+              [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
+    return result;
+  }
+  // Outside: grow shells of cells around p's (clamped) cell until no
+  // unvisited simplex can come closer than the best plus the slack.
+  thread_local VisitMarks marks;
+  marks.Begin(simplices_.size());
+  double best = kInf;
+  std::vector<IndexCandidate> found;
+  const double keep = outside_slack_mm + options.on_data_mm;
+  for (int r = 0;; ++r) {
+    for (int z = c[2] - r; z <= c[2] + r; ++z) {
+      if (z < 0 || z >= grid_n_[2]) continue;
+      for (int y = c[1] - r; y <= c[1] + r; ++y) {
+        if (y < 0 || y >= grid_n_[1]) continue;
+        for (int x = c[0] - r; x <= c[0] + r; ++x) {
+          if (x < 0 || x >= grid_n_[0]) continue;
+          if (std::max({std::abs(x - c[0]), std::abs(y - c[1]),
+                        std::abs(z - c[2])}) != r) {
+            continue;
+          }
+          items_of(x, y, z, [&](uint32_t s) {
+            if (!marks.Visit(s)) return;
+            const ClosestPoint cp =
+                ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+            if (cp.distance > best + keep) return;
+            best = std::min(best, cp.distance);
+            IndexCandidate cand;
+            cand.simplex = static_cast<int>(s);
+            cand.weights = cp.weights;
+            cand.point = cp.point;
+            cand.distance = cp.distance;
+            found.push_back(cand);
+          });
+        }
+      }
+    }
+    double bound = kInf;
+    for (int a = 0; a < 3; ++a) {
+      if (c[a] - r > 0) {
+        bound = std::min(bound, p[a] - (grid_origin_[a] + (c[a] - r) * cell_size_));
+      }
+      if (c[a] + r < grid_n_[a] - 1) {
+        bound = std::min(
+            bound, grid_origin_[a] + (c[a] + r + 1) * cell_size_ - p[a]);
+      }
+    }
+    if (bound == kInf || best + keep < bound) break;
+  }
+  for (const IndexCandidate& cand : found) {
+    if (cand.distance <= best + keep) result.candidates.push_back(cand);
+  }
+  std::sort(result.candidates.begin(), result.candidates.end(),
+            [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
+  result.inside = best <= options.on_data_mm;
+  result.distance = result.inside ? 0.0 : best;
+  return result;
+}
+
+IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
+                                        const IndexOptions& options) const {
+  IndexQuery result;
+  for (int64_t s = 0; s < static_cast<int64_t>(simplices_.size()); ++s) {
+    IndexCandidate cand;
+    if (s < num_tets_) {
+      if (!TetContains(Corners(s), p, options.inside_tolerance,
+                       &cand.weights)) {
+        continue;
+      }
+    } else {
+      const ClosestPoint cp =
+          ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+      if (cp.distance > options.on_data_mm) continue;
+      cand.weights = cp.weights;
+    }
+    cand.simplex = static_cast<int>(s);
+    cand.point = p;
+    result.candidates.push_back(cand);
+  }
+  if (!result.candidates.empty()) {
+    result.inside = true;
+    return result;
+  }
+  std::vector<IndexCandidate> all;
+  double best = kInf;
+  for (size_t s = 0; s < simplices_.size(); ++s) {
+    const ClosestPoint cp = ClosestPointOnSimplex(
+        Corners(static_cast<int>(s)), p, options.inside_tolerance);
+    IndexCandidate cand;
+    cand.simplex = static_cast<int>(s);
+    cand.weights = cp.weights;
+    cand.point = cp.point;
+    cand.distance = cp.distance;
+    all.push_back(cand);
+    best = std::min(best, cp.distance);
+  }
+  const double keep = outside_slack_mm + options.on_data_mm;
+  for (const auto& cand : all) {
+    if (cand.distance <= best + keep) result.candidates.push_back(cand);
+  }
+  result.inside = best <= options.on_data_mm;
+  result.distance = result.inside ? 0.0 : best;
+  return result;
+}
+
+void BundleIndex::Write(std::ostream& out) const {
+  WritePod<int32_t>(out, NumPoints());
+  out.write(reinterpret_cast<const char*>(points_.data()),
+            static_cast<std::streamsize>(points_.size() * sizeof(double)));
+  WritePodVector(out, point_shapes_);
+  WritePodVector(out, simplices_);
+  WritePod(out, num_tets_);
+  WritePod(out, std::array<double, 3>{grid_origin_[0], grid_origin_[1],
+                                      grid_origin_[2]});
+  WritePod(out, cell_size_);
+  WritePod(out, grid_n_);
+  WritePodVector(out, cell_start_);
+  WritePodVector(out, cell_items_);
+  WritePod(out, stats_);
+}
+
+BundleIndex BundleIndex::Read(std::istream& in) {
+  BundleIndex index;
+  const int32_t P = ReadPod<int32_t>(in);
+  if (P < 1 || P >= 65535) throw InputError("index cache: bad point count");
+  index.points_.resize(P, 3);
+  in.read(reinterpret_cast<char*>(index.points_.data()),
+          static_cast<std::streamsize>(index.points_.size() * sizeof(double)));
+  if (!in) throw InputError("index cache: unexpected end of file");
+  index.point_shapes_ = ReadPodVector<int>(in);
+  index.simplices_ = ReadPodVector<CloudSimplex>(in);
+  index.num_tets_ = ReadPod<int64_t>(in);
+  const auto origin = ReadPod<std::array<double, 3>>(in);
+  index.grid_origin_ = Vec3(origin[0], origin[1], origin[2]);
+  index.cell_size_ = ReadPod<double>(in);
+  index.grid_n_ = ReadPod<std::array<int, 3>>(in);
+  index.cell_start_ = ReadPodVector<uint32_t>(in);
+  index.cell_items_ = ReadPodVector<uint32_t>(in);
+  index.stats_ = ReadPod<BundleIndexStats>(in);
+  // Validate what the queries index with, so a corrupt cache cannot read out
+  // of bounds.
+  const size_t cells =
+      static_cast<size_t>(index.grid_n_[0]) * index.grid_n_[1] * index.grid_n_[2];
+  bool ok = static_cast<int>(index.point_shapes_.size()) == P &&
+            index.num_tets_ >= 0 &&
+            index.num_tets_ <= static_cast<int64_t>(index.simplices_.size()) &&
+            index.grid_n_[0] >= 1 && index.grid_n_[1] >= 1 &&
+            index.grid_n_[2] >= 1 && index.cell_start_.size() == cells + 1 &&
+            index.cell_start_.back() == index.cell_items_.size() &&
+            index.cell_size_ > 0;
+  for (const auto& s : index.simplices_) {
+    ok = ok && s.size >= 1 && s.size <= 4;
+    for (int i = 0; ok && i < s.size; ++i) ok = s.corner[i] < P;
+  }
+  for (size_t c = 0; ok && c < cells; ++c) {
+    ok = index.cell_start_[c] <= index.cell_start_[c + 1];
+  }
+  for (uint32_t item : index.cell_items_) {
+    ok = ok && item < index.simplices_.size();
+  }
+  ok = ok && index.simplices_.size() >= static_cast<size_t>(P);
+  for (int i = 0; ok && i < P; ++i) {
+    const CloudSimplex& s = index.simplices_[index.simplices_.size() - P + i];
+    ok = s.size == 1 && s.corner[0] == i;
+  }
+  if (!ok) throw InputError("index cache: inconsistent bundle index");
+  return index;
+}
+
+}  // namespace hmc

@@ -1,0 +1,199 @@
+#include "indexing/bundle_index.h"
+
+#include <random>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+
+namespace hmc {
+namespace {
+
+BundleIndex RandomIndex(int seed, int points, const IndexOptions& options) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, 5.0);
+  MatX3d cloud(points, 3);
+  std::vector<int> shapes(points);
+  for (int i = 0; i < points; ++i) {
+    cloud.row(i) << g(rng), g(rng), 0.5 * g(rng);
+    shapes[i] = i - 1;
+  }
+  return BundleIndex::Build(cloud, shapes, options);
+}
+
+std::set<int> Ids(const IndexQuery& q) {
+  std::set<int> ids;
+  for (const auto& c : q.candidates) ids.insert(c.simplex);
+  return ids;
+}
+
+// The grid query returns exactly what testing every simplex returns, inside
+// and outside, for clouds of several sizes and seeds and coarse/fine grids.
+TEST(BundleIndex, GridQueryMatchesBruteForce) {
+  for (int seed = 1; seed <= 4; ++seed) {
+    for (int cells : {1, 5, 16}) {
+      IndexOptions options;
+      options.grid_max_cells = cells;
+      options.min_tet_quality = 0.05;
+      const BundleIndex index = RandomIndex(seed, 7 + 2 * seed, options);
+      std::mt19937 rng(100 + seed);
+      std::normal_distribution<double> g(0.0, 9.0);
+      int inside = 0, outside = 0;
+      for (int t = 0; t < 150; ++t) {
+        const Vec3 p(g(rng), g(rng), g(rng));
+        for (double slack : {0.0, 0.5}) {
+          const IndexQuery fast = index.Query(p, slack, options);
+          const IndexQuery slow = index.QueryBruteForce(p, slack, options);
+          ASSERT_EQ(fast.inside, slow.inside);
+          EXPECT_NEAR(fast.distance, slow.distance, 1e-12);
+          EXPECT_EQ(Ids(fast), Ids(slow));
+          (fast.inside ? inside : outside)++;
+          for (const auto& c : fast.candidates) {
+            EXPECT_LE(c.distance, fast.distance + slack + options.on_data_mm);
+          }
+        }
+      }
+      EXPECT_GT(inside, 0);
+      EXPECT_GT(outside, 0);
+    }
+  }
+}
+
+// At the corners, edge midpoints and face centroids of every kept
+// tetrahedron, the query finds that tetrahedron with convex weights that
+// reproduce the point.
+TEST(BundleIndex, RobustAtFacesEdgesAndCorners) {
+  for (int seed = 1; seed <= 3; ++seed) {
+    IndexOptions options;
+    const BundleIndex index = RandomIndex(seed, 8, options);
+    int tested = 0;
+    for (int s = 0; s < static_cast<int>(index.simplices().size()); ++s) {
+      const SimplexCorners c = index.Corners(s);
+      if (c.size != 4) continue;
+      std::vector<Vec3> probes;
+      for (int i = 0; i < 4; ++i) {
+        probes.push_back(c.x[i]);
+        for (int j = i + 1; j < 4; ++j) probes.push_back(0.5 * (c.x[i] + c.x[j]));
+      }
+      for (int skip = 0; skip < 4; ++skip) {
+        Vec3 centroid = Vec3::Zero();
+        for (int i = 0; i < 4; ++i) {
+          if (i != skip) centroid += c.x[i] / 3.0;
+        }
+        probes.push_back(centroid);
+      }
+      for (const Vec3& p : probes) {
+        const IndexQuery q = index.Query(p, 0.0, options);
+        ASSERT_TRUE(q.inside);
+        bool found = false;
+        for (const auto& cand : q.candidates) {
+          const SimplexCorners cc = index.Corners(cand.simplex);
+          Vec3 x = Vec3::Zero();
+          double sum = 0;
+          for (int i = 0; i < cc.size; ++i) {
+            EXPECT_GE(cand.weights[i], 0.0);
+            x += cand.weights[i] * cc.x[i];
+            sum += cand.weights[i];
+          }
+          EXPECT_NEAR(sum, 1.0, 1e-12);
+          EXPECT_LT((x - p).norm(), 1e-9);
+          found |= cand.simplex == s;
+        }
+        EXPECT_TRUE(found) << "simplex " << s;
+        ++tested;
+      }
+    }
+    EXPECT_GT(tested, 0);
+  }
+}
+
+// A point outside the cloud lands on the closest point of the union of
+// simplices, found by brute force over all of them.
+TEST(BundleIndex, OutsideLandsOnClosestPoint) {
+  for (int seed = 1; seed <= 4; ++seed) {
+    IndexOptions options;
+    const BundleIndex index = RandomIndex(seed, 9, options);
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> g(0.0, 1.0);
+    for (int t = 0; t < 40; ++t) {
+      const Vec3 dir = Vec3(g(rng), g(rng), g(rng)).normalized();
+      const Vec3 p = dir * (30 + 20 * std::abs(g(rng)));
+      const IndexQuery q = index.Query(p, 0.0, options);
+      ASSERT_FALSE(q.inside);
+      double best = 1e300;
+      for (int s = 0; s < static_cast<int>(index.simplices().size()); ++s) {
+        best = std::min(best, ClosestPointOnSimplex(index.Corners(s), p, 0).distance);
+      }
+      EXPECT_NEAR(q.distance, best, 1e-9);
+      ASSERT_FALSE(q.candidates.empty());
+      for (const auto& c : q.candidates) {
+        EXPECT_NEAR((c.point - p).norm(), best, options.on_data_mm + 1e-9);
+      }
+    }
+  }
+}
+
+TEST(BundleIndex, LowDimensionalClouds) {
+  IndexOptions options;
+  // Two points: a segment; one point: itself.
+  MatX3d two(2, 3);
+  two << 0, 0, 0, 10, 0, 0;
+  const BundleIndex seg = BundleIndex::Build(two, {-1, 0}, options);
+  const IndexQuery q = seg.Query(Vec3(4, 0, 0), 0.0, options);
+  ASSERT_TRUE(q.inside);
+  ASSERT_EQ(q.candidates.size(), 1u);
+  EXPECT_NEAR(q.candidates[0].weights[1], 0.4, 1e-12);
+  const IndexQuery off = seg.Query(Vec3(4, 3, 0), 0.0, options);
+  EXPECT_FALSE(off.inside);
+  EXPECT_NEAR(off.distance, 3.0, 1e-12);
+  MatX3d one(1, 3);
+  one << 1, 2, 3;
+  const BundleIndex dot = BundleIndex::Build(one, {-1}, options);
+  const IndexQuery q1 = dot.Query(Vec3(1, 2, 4), 0.0, options);
+  EXPECT_NEAR(q1.distance, 1.0, 1e-12);
+  EXPECT_EQ(q1.candidates.size(), 1u);
+}
+
+TEST(BundleIndex, PruningRespectsQualityAndExtent) {
+  IndexOptions options;
+  options.min_tet_quality = 0.2;
+  options.max_edge_mm = 12.0;
+  const BundleIndex index = RandomIndex(3, 10, options);
+  for (int s = 0; s < static_cast<int>(index.simplices().size()); ++s) {
+    const SimplexCorners c = index.Corners(s);
+    for (int i = 0; i < c.size; ++i) {
+      for (int j = i + 1; j < c.size; ++j) {
+        EXPECT_LE((c.x[i] - c.x[j]).norm(), 12.0 + 1e-12);
+      }
+    }
+    if (c.size == 4) {
+      EXPECT_GE(TetQuality(c.x[0], c.x[1], c.x[2], c.x[3]), 0.2);
+    }
+  }
+  EXPECT_EQ(index.stats().tets_candidate, 210);
+  EXPECT_LE(index.stats().tets_kept, 210);
+}
+
+TEST(BundleIndex, WriteReadRoundTrip) {
+  IndexOptions options;
+  const BundleIndex index = RandomIndex(5, 9, options);
+  std::stringstream buffer;
+  index.Write(buffer);
+  const BundleIndex back = BundleIndex::Read(buffer);
+  EXPECT_EQ(back.points(), index.points());
+  EXPECT_EQ(back.point_shapes(), index.point_shapes());
+  ASSERT_EQ(back.simplices().size(), index.simplices().size());
+  std::mt19937 rng(1);
+  std::normal_distribution<double> g(0.0, 8.0);
+  for (int t = 0; t < 50; ++t) {
+    const Vec3 p(g(rng), g(rng), g(rng));
+    EXPECT_EQ(Ids(back.Query(p, 0.1, options)), Ids(index.Query(p, 0.1, options)));
+  }
+  std::stringstream truncated(buffer.str().substr(0, buffer.str().size() / 2));
+  EXPECT_THROW(BundleIndex::Read(truncated), InputError);
+}
+
+}  // namespace
+}  // namespace hmc

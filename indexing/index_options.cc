@@ -1,0 +1,59 @@
+#include "indexing/index_options.h"
+
+#include "core/logging.h"
+
+namespace hmc {
+
+void IndexOptions::Register(OptionFields* fields) {
+  fields->SetGroup("index");
+  fields->Add("merge_mm", &merge_mm,
+              "shapes differing by at most this over a bundle's region share "
+              "one cloud point (mm)");
+  fields->Add("region_tag_mm", &region_tag_mm,
+              "shapes tagged for another region are dropped when they move "
+              "the bundle's region by at most this (mm)");
+  fields->Add("min_tet_quality", &min_tet_quality,
+              "tetrahedra thinner than this quality are pruned (0..1)");
+  fields->Add("min_triangle_quality", &min_triangle_quality,
+              "triangles thinner than this quality are pruned (0..1)");
+  fields->Add("max_edge_mm", &max_edge_mm,
+              "simplices with a longer edge are pruned (mm; 0 = no bound)");
+  fields->Add("grid_max_cells", &grid_max_cells,
+              "grid cells along the longest side of a cloud's box");
+  fields->Add("grid_entries_per_element", &grid_entries_per_element,
+              "grid memory bound: cell-list entries per element on average");
+  fields->Add("inside_tolerance", &inside_tolerance,
+              "barycentric slack of the inside test");
+  fields->Add("on_data_mm", &on_data_mm,
+              "distance up to which a bundle counts as on the data (mm)");
+  fields->SetGroup("");
+}
+
+bool IndexOptions::Check() const {
+  auto fail = [](const char* what) {
+    spdlog::error("index options: {}", what);
+    return false;
+  };
+  if (!(merge_mm >= 0)) return fail("merge_mm must be >= 0");
+  if (!(region_tag_mm >= 0)) return fail("region_tag_mm must be >= 0");
+  if (!(min_tet_quality >= 0 && min_tet_quality < 1)) {
+    return fail("min_tet_quality must be in [0, 1)");
+  }
+  if (!(min_triangle_quality >= 0 && min_triangle_quality < 1)) {
+    return fail("min_triangle_quality must be in [0, 1)");
+  }
+  if (!(max_edge_mm >= 0)) return fail("max_edge_mm must be >= 0");
+  if (grid_max_cells < 1 || grid_max_cells > 256) {
+    return fail("grid_max_cells must be in [1, 256]");
+  }
+  if (!(grid_entries_per_element >= 1)) {
+    return fail("grid_entries_per_element must be >= 1");
+  }
+  if (!(inside_tolerance >= 0 && inside_tolerance < 0.1)) {
+    return fail("inside_tolerance must be in [0, 0.1)");
+  }
+  if (!(on_data_mm >= 0)) return fail("on_data_mm must be >= 0");
+  return true;
+}
+
+}  // namespace hmc

@@ -1,0 +1,71 @@
+// The dataset as the index and the solve see it (DESIGN.md section 4, steps
+// 1 and 8): shapes unskinned by their own jaw pose, b*_n = T(theta_n)^-1
+// (x0 + b_n) - x0 (paper, "Jaw Articulation"), both per vertex (for the
+// blend) and at every bundle's surface point (for the point clouds and the
+// neighbour criterion).
+//
+// The point at a bundle is computed with exactly the operation that unskins
+// an observed bundle (UnskinBundle): evaluate the surface point on the skinned
+// shape, then unskin it with the jaw weight interpolated at the surface
+// point. A bundle taken from a dataset shape therefore lands exactly on a
+// cloud point.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/actor.h"
+
+namespace hmc {
+
+struct ShapeData {
+  int num_vertices = 0;
+  int num_shapes = 0;
+  int num_bundles = 0;
+  std::vector<std::string> shape_names;   // N
+  std::vector<std::string> bundle_names;  // K (the actor's markers)
+  std::vector<SurfacePoint> sites;        // K bundle surface points
+  Eigen::VectorXd site_jaw_weight;        // K skinning weights at the sites
+  // K x 3 jaw moments m_k = sum_i bary_i w_i (x0_i - x0(s_k)) over the
+  // site's triangle corners i: how the corners' different skinning weights
+  // move the surface point beyond skinning it with the interpolated weight.
+  MatX3d site_jaw_moment;
+  MatX3d site_neutral;                    // K x 3 x0(s_k) (mm)
+  // (N K) x 3: row n K + k = unskinned displacement of shape n at bundle k,
+  // c*_{k,n} - x0(s_k) (mm).
+  MatX3d site_displacement;
+  // V N 3 floats, vertex-major: [(v N + n) 3 + axis] = b*_n(v) (mm). One
+  // vertex's shapes are contiguous, which is what the blend loop reads.
+  std::vector<float> vertex_displacement;
+  std::optional<JawRig> jaw_rig;
+
+  Vec3 SiteDisplacement(int shape, int bundle) const {
+    return site_displacement.row(static_cast<int64_t>(shape) * num_bundles +
+                                 bundle)
+        .transpose();
+  }
+  const float* VertexDisplacements(int v) const {
+    return vertex_displacement.data() + static_cast<size_t>(v) * num_shapes * 3;
+  }
+};
+
+// Parallel over shapes and vertices.
+ShapeData ComputeShapeData(const Actor& actor);
+
+// Skinning of bundle k's surface point: the surface point of the per-vertex
+// skinned triangle whose unskinned shape is the neutral's triangle moved to
+// u,
+//   S_k(u) = A(w_k) u + w_k t + (R - I) m_k,  A(w) = (1 - w) I + w R,
+// with T(theta) = (R, t), w_k the interpolated weight and m_k the jaw moment.
+// Exact for the neutral and rigid translations of its triangle, so a pure jaw
+// motion of the neutral unskins exactly to the neutral; identity without a
+// jaw rig.
+Vec3 SkinBundle(const ShapeData& data, int bundle, const JawPose& pose,
+                const Vec3& u);
+// Its exact inverse: the observed bundle k at p (head space) unskinned with
+// the frame's jaw pose.
+Vec3 UnskinBundle(const ShapeData& data, int bundle, const JawPose& pose,
+                  const Vec3& p);
+
+}  // namespace hmc

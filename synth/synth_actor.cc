@@ -1,0 +1,268 @@
+#include "synth/synth_actor.h"
+
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+#include "synth/face_model.h"
+#include "synth/marker_layout.h"
+
+namespace hmc {
+
+void SynthActorOptions::Register(OptionFields* fields) {
+  fields->Add("seed", &seed, "random seed: face proportions, marker jitter, detail phases");
+  fields->Add("name", &name, "actor name written to actor.yaml");
+  fields->Add("grid_u", &grid_u, "vertex columns of the face grid (>= 24)");
+  fields->Add("grid_v", &grid_v, "vertex rows of the face grid (>= 20)");
+  fields->Add("proportion_jitter", &proportion_jitter,
+              "relative spread of the seeded face proportions");
+  fields->Add("detail_scale", &detail_scale, "scale of wrinkle and fold amplitudes");
+  fields->Add("marker_jitter_mm", &marker_jitter_mm,
+              "std of the seeded marker placement jitter (mm)");
+  fields->Add("dataset_inbetweens", &dataset_inbetweens,
+              "add in-between shapes (50%, some 25/75%)");
+  fields->Add("dataset_combos", &dataset_combos, "add the combination shapes");
+}
+
+bool SynthActorOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("actor synth options: {}", message);
+    ok = false;
+  };
+  if (grid_u < 24 || grid_u > 4096) fail("grid_u must be in [24, 4096]");
+  if (grid_v < 20 || grid_v > 4096) fail("grid_v must be in [20, 4096]");
+  if (!(proportion_jitter >= 0 && proportion_jitter <= 0.15)) {
+    fail("proportion_jitter must be in [0, 0.15]");
+  }
+  if (!(detail_scale >= 0 && detail_scale <= 5)) fail("detail_scale must be in [0, 5]");
+  if (!(marker_jitter_mm >= 0 && marker_jitter_mm <= 3)) {
+    fail("marker_jitter_mm must be in [0, 3]");
+  }
+  if (name.empty()) fail("name must not be empty");
+  return ok;
+}
+
+namespace {
+
+// Selected combinations: expressions, speech visemes and jaw combinations.
+const std::vector<std::pair<std::string, std::map<std::string, double>>>&
+Combos() {
+  static const std::vector<std::pair<std::string, std::map<std::string, double>>>
+      combos = {
+          {"combo_smile", {{"AU12_lip_corner_puller_L", 1}, {"AU12_lip_corner_puller_R", 1}}},
+          {"combo_smile_cheekraise",
+           {{"AU12_lip_corner_puller_L", 1}, {"AU12_lip_corner_puller_R", 1},
+            {"AU06_cheek_raiser_L", 1}, {"AU06_cheek_raiser_R", 1}}},
+          {"combo_smile_cheekraise_L",
+           {{"AU12_lip_corner_puller_L", 1}, {"AU06_cheek_raiser_L", 1}}},
+          {"combo_brow_raise",
+           {{"AU01_inner_brow_raiser_L", 1}, {"AU01_inner_brow_raiser_R", 1},
+            {"AU02_outer_brow_raiser_L", 1}, {"AU02_outer_brow_raiser_R", 1}}},
+          {"combo_jawopen_funnel", {{"AU26_jaw_drop", 0.7}, {"AU22_lip_funneler", 1}}},
+          {"combo_surprise",
+           {{"AU01_inner_brow_raiser_L", 1}, {"AU01_inner_brow_raiser_R", 1},
+            {"AU02_outer_brow_raiser_L", 1}, {"AU02_outer_brow_raiser_R", 1},
+            {"AU05_upper_lid_raiser", 1}, {"AU26_jaw_drop", 0.6}}},
+          {"combo_anger",
+           {{"AU04_brow_lowerer", 1}, {"AU07_lid_tightener", 1}, {"AU24_lip_pressor", 1}}},
+          {"combo_disgust", {{"AU09_nose_wrinkler", 1}, {"AU10_upper_lip_raiser", 1}}},
+          {"combo_sad",
+           {{"AU01_inner_brow_raiser_L", 1}, {"AU01_inner_brow_raiser_R", 1},
+            {"AU04_brow_lowerer", 0.5}, {"AU15_lip_corner_depressor_L", 1},
+            {"AU15_lip_corner_depressor_R", 1}}},
+          {"combo_fear",
+           {{"AU01_inner_brow_raiser_L", 1}, {"AU01_inner_brow_raiser_R", 1},
+            {"AU04_brow_lowerer", 0.6}, {"AU20_lip_stretcher_L", 1},
+            {"AU20_lip_stretcher_R", 1}, {"AU05_upper_lid_raiser", 1}}},
+          {"combo_kiss", {{"AU18_lip_puckerer", 1}, {"AU22_lip_funneler", 0.6}}},
+          {"combo_pucker_jaw", {{"AU18_lip_puckerer", 1}, {"AU26_jaw_drop", 0.3}}},
+          {"combo_chin_press", {{"AU17_chin_raiser", 1}, {"AU24_lip_pressor", 1}}},
+          {"combo_smile_jaw",
+           {{"AU12_lip_corner_puller_L", 1}, {"AU12_lip_corner_puller_R", 1},
+            {"AU26_jaw_drop", 0.6}}},
+          {"combo_blink", {{"AU45_blink_L", 1}, {"AU45_blink_R", 1}}},
+          {"combo_squint",
+           {{"AU06_cheek_raiser_L", 1}, {"AU06_cheek_raiser_R", 1}, {"AU07_lid_tightener", 1}}},
+          {"combo_sneer_L",
+           {{"AU09_nose_wrinkler", 0.6}, {"AU10_upper_lip_raiser", 0.8},
+            {"AU12_lip_corner_puller_L", 0.4}}},
+          {"combo_jaw_left_open", {{"AU30_jaw_sideways_L", 1}, {"AU26_jaw_drop", 0.5}}},
+          {"combo_jaw_right_open", {{"AU30_jaw_sideways_R", 1}, {"AU26_jaw_drop", 0.5}}},
+          {"combo_jaw_thrust_open", {{"AU29_jaw_thrust", 1}, {"AU26_jaw_drop", 0.5}}},
+          {"combo_scream",
+           {{"AU27_mouth_stretch", 1}, {"AU26_jaw_drop", 0.5}, {"AU04_brow_lowerer", 0.7},
+            {"AU20_lip_stretcher_L", 0.8}, {"AU20_lip_stretcher_R", 0.8}}},
+          {"combo_lip_stretch", {{"AU20_lip_stretcher_L", 1}, {"AU20_lip_stretcher_R", 1}}},
+          {"combo_grimace",
+           {{"AU20_lip_stretcher_L", 1}, {"AU20_lip_stretcher_R", 1},
+            {"AU04_brow_lowerer", 1}, {"AU07_lid_tightener", 1}, {"AU09_nose_wrinkler", 0.5}}},
+          {"combo_puff_press", {{"AU34_cheek_puff", 1}, {"AU24_lip_pressor", 0.7}}},
+          {"combo_dimple_smile",
+           {{"AU14_dimpler", 1}, {"AU12_lip_corner_puller_L", 0.6},
+            {"AU12_lip_corner_puller_R", 0.6}}},
+          {"combo_frown",
+           {{"AU15_lip_corner_depressor_L", 1}, {"AU15_lip_corner_depressor_R", 1},
+            {"AU17_chin_raiser", 1}}},
+          {"combo_speech_oo", {{"AU22_lip_funneler", 0.8}, {"AU18_lip_puckerer", 0.5},
+                               {"AU26_jaw_drop", 0.3}}},
+          {"combo_speech_ee",
+           {{"AU20_lip_stretcher_L", 0.6}, {"AU20_lip_stretcher_R", 0.6},
+            {"AU12_lip_corner_puller_L", 0.3}, {"AU12_lip_corner_puller_R", 0.3},
+            {"AU26_jaw_drop", 0.2}}},
+          {"combo_speech_aa", {{"AU26_jaw_drop", 0.75}, {"AU10_upper_lip_raiser", 0.3}}},
+          {"combo_speech_mm", {{"AU24_lip_pressor", 0.6}, {"AU23_lip_tightener", 0.5}}},
+      };
+  return combos;
+}
+
+// Units with extra 25% and 75% in-betweens: the ones whose motion is large
+// and most nonlinear in activation.
+const std::vector<std::string>& FineInbetweenUnits() {
+  static const std::vector<std::string> units = {
+      "AU26_jaw_drop", "AU12_lip_corner_puller_L", "AU12_lip_corner_puller_R",
+      "AU45_blink_L",  "AU45_blink_R",             "AU18_lip_puckerer"};
+  return units;
+}
+
+std::vector<std::string> UnionTags(const FaceModel& model,
+                                   const Eigen::VectorXd& a) {
+  std::vector<std::string> tags;
+  for (int k = 0; k < model.NumUnits(); ++k) {
+    if (a[k] == 0) continue;
+    for (const std::string& tag : model.units()[k].tags) {
+      if (std::find(tags.begin(), tags.end(), tag) == tags.end()) tags.push_back(tag);
+    }
+  }
+  return tags;
+}
+
+}  // namespace
+
+std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
+                                      const SynthActorOptions& options) {
+  std::vector<DatasetEntry> plan;
+  auto add = [&](std::string name, Eigen::VectorXd a) {
+    std::vector<std::string> tags = UnionTags(model, a);
+    plan.push_back({std::move(name), std::move(a), std::move(tags)});
+  };
+  const int num_units = model.NumUnits();
+  for (int k = 0; k < num_units; ++k) {
+    std::vector<double> levels = {1.0};
+    if (options.dataset_inbetweens) {
+      levels.push_back(0.5);
+      const auto& fine = FineInbetweenUnits();
+      if (std::find(fine.begin(), fine.end(), model.units()[k].name) != fine.end()) {
+        levels.push_back(0.25);
+        levels.push_back(0.75);
+      }
+    }
+    for (double level : levels) {
+      Eigen::VectorXd a = model.ZeroActivations();
+      a[k] = level;
+      add(fmt::format("{}_{:03d}", model.units()[k].name,
+                      static_cast<int>(std::lround(level * 100))),
+          a);
+    }
+  }
+  if (options.dataset_combos) {
+    for (const auto& [name, units] : Combos()) {
+      Eigen::VectorXd a = model.ZeroActivations();
+      for (const auto& [unit, level] : units) {
+        const int k = model.FindUnit(unit);
+        HMC_CHECK_MSG(k >= 0, "combo " + name + " names unknown unit " + unit);
+        a[k] = level;
+      }
+      add(name, a);
+    }
+  }
+  return plan;
+}
+
+Actor SynthesizeActorFromModel(const FaceModel& model,
+                               const SynthActorOptions& options) {
+  Actor actor;
+  actor.name = options.name;
+  actor.units = "mm";
+  actor.neutral = model.neutral();
+  actor.jaw_rig = model.jaw_rig();
+  actor.markers = LayoutMarkers(model.face(), static_cast<uint64_t>(options.seed),
+                                options.marker_jitter_mm);
+  const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+  actor.shapes.resize(plan.size());
+  // Each evaluation is parallel over vertices; shapes go one after another.
+  Progress progress("dataset shapes", static_cast<int64_t>(plan.size()), "shapes");
+  for (size_t n = 0; n < plan.size(); ++n) {
+    Shape& shape = actor.shapes[n];
+    shape.name = plan[n].name;
+    shape.tags = plan[n].tags;
+    shape.jaw = model.JawPoseOf(plan[n].activations);
+    shape.displacement = model.Evaluate(plan[n].activations) - model.neutral().V;
+    progress.Advance();
+  }
+  progress.Finish();
+  return actor;
+}
+
+void WriteSynthActorOptions(const SynthActorOptions& options,
+                            const std::filesystem::path& actor_dir) {
+  SynthActorOptions copy = options;
+  OptionFields fields;
+  copy.Register(&fields);
+  WriteOptionsUsed(fields, actor_dir / kSynthOptionsFile);
+}
+
+SynthActorOptions ReadSynthActorOptions(const std::filesystem::path& actor_dir) {
+  const std::filesystem::path file = actor_dir / kSynthOptionsFile;
+  if (!std::filesystem::exists(file)) {
+    ThrowInputError(file, 0,
+                    "missing: not a synthetic actor package (`hmc actor "
+                    "synth` writes the generator options there)");
+  }
+  SynthActorOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  fields.LoadYamlFile(file);
+  if (!options.Check()) {
+    ThrowInputError(file, 0, "invalid generator options (see the message above)");
+  }
+  return options;
+}
+
+void CheckActorMatchesModel(const Actor& actor, const FaceModel& model,
+                            double tolerance_mm) {
+  const std::filesystem::path file = actor.dir / "neutral.obj";
+  const TriMesh& mine = model.neutral();
+  if (mine.NumVertices() != actor.NumVertices() ||
+      mine.NumFaces() != actor.neutral.NumFaces() || mine.F != actor.neutral.F) {
+    ThrowInputError(file, 0,
+                    "does not match the generator in {} ({} vertices and {} "
+                    "triangles regenerated, {} and {} loaded): the package "
+                    "was edited or is stale",
+                    kSynthOptionsFile, mine.NumVertices(), mine.NumFaces(),
+                    actor.NumVertices(), actor.neutral.NumFaces());
+  }
+  const double difference = (mine.V - actor.neutral.V).cwiseAbs().maxCoeff();
+  if (!(difference <= tolerance_mm)) {
+    ThrowInputError(file, 0,
+                    "does not match the generator in {} (vertex positions "
+                    "differ by up to {:.3g} mm): the package was edited or "
+                    "is stale",
+                    kSynthOptionsFile, difference);
+  }
+}
+
+Actor SynthesizeActor(const SynthActorOptions& options) {
+  if (!options.Check()) {
+    throw InputError("invalid synthetic actor options (see the message above)");
+  }
+  const FaceModel model(options);
+  return SynthesizeActorFromModel(model, options);
+}
+
+}  // namespace hmc
