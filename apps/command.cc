@@ -15,6 +15,15 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields)
     CLI::Option* flag =
         app->add_option("--" + field.name, *values_.back(), field.help)
             ->default_str(fields_.ValueString(field))
+            ->type_name(std::visit(
+                [](auto* pointer) -> std::string {
+                  using T = std::remove_pointer_t<decltype(pointer)>;
+                  if constexpr (std::is_same_v<T, double>) return "NUMBER";
+                  if constexpr (std::is_same_v<T, int>) return "INT";
+                  if constexpr (std::is_same_v<T, bool>) return "BOOL";
+                  return "TEXT";
+                },
+                field.pointer))
             ->group("Options (also settable in --config)");
     flags_.emplace_back(&field, flag);
   }

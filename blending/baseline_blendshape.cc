@@ -1,0 +1,337 @@
+#include "blending/baseline_blendshape.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "core/jaw.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+
+namespace hmc {
+
+void BlendshapeOptions::Register(OptionFields* fields) {
+  fields->SetGroup("blendshape");
+  fields->Add("bounded", &bounded,
+              "hard bounds 0 <= w <= 1 instead of the soft penalty");
+  fields->Add("penalty", &penalty,
+              "soft [0,1] penalty weight (mm^2 per unit weight^2)");
+  fields->Add("tikhonov", &tikhonov,
+              "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)");
+  fields->Add("max_iterations", &max_iterations, "Newton iterations per frame");
+  fields->Add("min_bundle_fraction", &min_bundle_fraction,
+              "frames with fewer observed bundles (fraction of markers) are "
+              "flagged bad and skipped");
+  fields->SetGroup("");
+}
+
+bool BlendshapeOptions::Check() const {
+  auto fail = [](const char* what) {
+    spdlog::error("blendshape options: {}", what);
+    return false;
+  };
+  if (!(penalty >= 0) || !std::isfinite(penalty)) {
+    return fail("penalty must be >= 0 and finite");
+  }
+  if (!(tikhonov > 0) || !std::isfinite(tikhonov)) {
+    return fail("tikhonov must be > 0 and finite");
+  }
+  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
+    return fail("min_bundle_fraction must be in [0, 1]");
+  }
+  return true;
+}
+
+namespace {
+
+double SoftObjective(const Eigen::MatrixXd& Q, const Eigen::VectorXd& c,
+                     double mu, const Eigen::VectorXd& w) {
+  double pen = 0;
+  for (int i = 0; i < w.size(); ++i) {
+    if (w[i] < 0) pen += w[i] * w[i];
+    if (w[i] > 1) pen += (w[i] - 1) * (w[i] - 1);
+  }
+  return 0.5 * w.dot(Q * w) - c.dot(w) + 0.5 * mu * pen;
+}
+
+}  // namespace
+
+Eigen::VectorXd SolveSoftBoxQp(const Eigen::MatrixXd& Q,
+                               const Eigen::VectorXd& c, double mu,
+                               int max_iterations) {
+  const int N = static_cast<int>(c.size());
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(N);
+  double f = SoftObjective(Q, c, mu, w);
+  // Active sets of the current point; the objective is the quadratic
+  // 1/2 w^T (Q + mu D) w - (c + mu h)^T w on the region where they hold.
+  for (int iter = 0; iter < max_iterations; ++iter) {
+    Eigen::MatrixXd A = Q;
+    Eigen::VectorXd b = c;
+    for (int i = 0; i < N; ++i) {
+      if (w[i] < 0) {
+        A(i, i) += mu;
+      } else if (w[i] > 1) {
+        A(i, i) += mu;
+        b[i] += mu;
+      }
+    }
+    const Eigen::VectorXd target = A.llt().solve(b);
+    const Eigen::VectorXd step = target - w;
+    if (step.lpNorm<Eigen::Infinity>() < 1e-13) break;
+    // The gradient is continuous and the objective convex, so a backtracking
+    // line search along the Newton direction always makes progress.
+    double t = 1.0;
+    Eigen::VectorXd next = target;
+    double f_next = SoftObjective(Q, c, mu, next);
+    for (int halving = 0; halving < 40 && f_next > f; ++halving) {
+      t *= 0.5;
+      next = w + t * step;
+      f_next = SoftObjective(Q, c, mu, next);
+    }
+    if (f_next > f) break;
+    w = next;
+    const bool converged = t == 1.0 && f - f_next <= 1e-15 * (1 + std::abs(f));
+    f = f_next;
+    if (converged) break;
+  }
+  return w;
+}
+
+Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
+                                  const Eigen::VectorXd& c,
+                                  int max_iterations) {
+  const int N = static_cast<int>(c.size());
+  auto clamp = [](Eigen::VectorXd x) {
+    return x.cwiseMax(0.0).cwiseMin(1.0).eval();
+  };
+  auto objective = [&](const Eigen::VectorXd& x) {
+    return 0.5 * x.dot(Q * x) - c.dot(x);
+  };
+  Eigen::VectorXd w = clamp(Q.llt().solve(c));
+  double f = objective(w);
+  const double tol = 1e-12 * (1.0 + c.lpNorm<Eigen::Infinity>());
+  for (int iter = 0; iter < max_iterations; ++iter) {
+    const Eigen::VectorXd g = Q * w - c;
+    // Optimality: the projected gradient step does not move.
+    if ((clamp(w - g) - w).lpNorm<Eigen::Infinity>() <= tol) break;
+    // Free variables: not held at a bound by the gradient.
+    std::vector<int> free;
+    for (int i = 0; i < N; ++i) {
+      const bool at_lo = w[i] <= 0 && g[i] > 0;
+      const bool at_hi = w[i] >= 1 && g[i] < 0;
+      if (!at_lo && !at_hi) free.push_back(i);
+    }
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(N);
+    if (!free.empty()) {
+      const int M = static_cast<int>(free.size());
+      Eigen::MatrixXd Qff(M, M);
+      Eigen::VectorXd gf(M);
+      for (int a = 0; a < M; ++a) {
+        gf[a] = g[free[a]];
+        for (int b = 0; b < M; ++b) Qff(a, b) = Q(free[a], free[b]);
+      }
+      const Eigen::VectorXd df = Qff.llt().solve(-gf);
+      for (int a = 0; a < M; ++a) d[free[a]] = df[a];
+    }
+    // Projected search with an Armijo condition (Bertsekas 1982).
+    double t = 1.0;
+    Eigen::VectorXd next = clamp(w + d);
+    double f_next = objective(next);
+    for (int halving = 0; halving < 50 && f_next > f + 1e-4 * g.dot(next - w);
+         ++halving) {
+      t *= 0.5;
+      next = clamp(w + t * d);
+      f_next = objective(next);
+    }
+    if (!(f_next < f)) {
+      // No descent along the Newton direction (rounding at the optimum, or
+      // a step blocked by bounds): a projected gradient step instead.
+      double s = 1.0 / std::max(1e-300, Q.diagonal().maxCoeff());
+      next = clamp(w - s * g);
+      f_next = objective(next);
+      if (!(f_next < f)) break;
+    }
+    w = next;
+    f = f_next;
+  }
+  return w;
+}
+
+SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
+                                const std::vector<BundleFrame>& frames,
+                                const std::vector<JawPose>& jaw,
+                                const std::vector<std::string>& frame_errors,
+                                const BaselineFrameFn& solve,
+                                const std::string& name) {
+  const int F = static_cast<int>(frames.size());
+  HMC_CHECK(jaw.empty() || static_cast<int>(jaw.size()) == F);
+  HMC_CHECK(frame_errors.empty() || static_cast<int>(frame_errors.size()) == F);
+  SolveResult result;
+  result.frames.resize(F);
+  result.meshes.resize(F);
+  SolveSummary& s = result.summary;
+  s.frames = F;
+  const MatX3d* last_good = nullptr;
+  Progress progress(name, F);
+  for (int f = 0; f < F; ++f) {
+    const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
+    FrameSolve& fs = result.frames[f];
+    if (!frame_errors.empty() && !frame_errors[f].empty()) {
+      fs.frame = frames[f].frame;
+      fs.jaw = pose;
+      fs.bundles.resize(data.num_bundles);
+      fs.reason = frame_errors[f];
+    } else {
+      fs = solve(f, frames[f], pose, &result.meshes[f]);
+    }
+    if (fs.ok) {
+      last_good = &result.meshes[f];
+    } else {
+      ++s.bad_frames;
+      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
+      if (last_good) {
+        result.meshes[f] = *last_good;
+      } else {
+        result.meshes[f] =
+            data.jaw_rig ? Skin(*data.jaw_rig, pose, neutral.V) : neutral.V;
+      }
+    }
+    for (const BundleSolve& b : fs.bundles) {
+      if (b.status == BundleSolve::Status::kInside) ++s.bundles_inside;
+    }
+    progress.Advance();
+  }
+  return result;
+}
+
+BlendshapeSolver::BlendshapeSolver(const TriMesh& neutral,
+                                   const ShapeData& data,
+                                   const BlendshapeOptions& options)
+    : neutral_(neutral), data_(data), options_(options) {
+  const int K = data.num_bundles, N = data.num_shapes;
+  HMC_CHECK(neutral.NumVertices() == data.num_vertices);
+  for (int k = 0; k < K; ++k) marker_index_[data.bundle_names[k]] = k;
+  site_shapes_.resize(3 * K, N);
+  for (int n = 0; n < N; ++n) {
+    for (int k = 0; k < K; ++k) {
+      site_shapes_.block<3, 1>(3 * k, n) = data.SiteDisplacement(n, k);
+    }
+  }
+  normal_ = site_shapes_.transpose() * site_shapes_;
+  normal_.diagonal().array() += options.tikhonov;
+}
+
+FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
+                                        const JawPose& jaw,
+                                        Eigen::VectorXd* weights,
+                                        MatX3d* mesh) const {
+  const int K = data_.num_bundles;
+  FrameSolve f;
+  f.frame = bundles.frame;
+  f.jaw = jaw;
+  f.bundles.resize(K);
+  std::vector<char> observed(K, 0);
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(3 * K);
+  int num_observed = 0;
+  for (const auto& [name, p] : bundles.bundles) {
+    const auto it = marker_index_.find(name);
+    if (it == marker_index_.end()) {
+      ++f.unknown_markers;
+      continue;
+    }
+    const int k = it->second;
+    observed[k] = 1;
+    ++num_observed;
+    f.bundles[k].observed = p;
+    f.bundles[k].status = BundleSolve::Status::kInside;
+    d.segment<3>(3 * k) =
+        UnskinBundle(data_, k, jaw, p) - data_.site_neutral.row(k).transpose();
+  }
+  const int needed = std::max(
+      1, static_cast<int>(std::ceil(options_.min_bundle_fraction * K - 1e-9)));
+  if (num_observed < needed) {
+    for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
+    f.reason = fmt::format("only {} of {} bundles observed (need {})",
+                           num_observed, K, needed);
+    return f;
+  }
+  // Missing bundles have d = 0 and their rank-3 terms leave the normal
+  // matrix.
+  Eigen::MatrixXd H = normal_;
+  for (int k = 0; k < K; ++k) {
+    if (observed[k]) continue;
+    const auto Bk = site_shapes_.middleRows(3 * k, 3);
+    H.noalias() -= Bk.transpose() * Bk;
+  }
+  const Eigen::VectorXd c = site_shapes_.transpose() * d;
+  // E = w^T H w - 2 c^T w + mu pen = 2 (1/2 w^T H w - c^T w + 1/2 mu pen).
+  const Eigen::VectorXd w =
+      options_.bounded
+          ? SolveBoundedBoxQp(H, c, options_.max_iterations)
+          : SolveSoftBoxQp(H, c, options_.penalty, options_.max_iterations);
+  f.ok = true;
+  if (mesh) {
+    *mesh = Blend(w, jaw);
+    for (int k = 0; k < K; ++k) {
+      if (!observed[k]) continue;
+      f.bundles[k].residual =
+          (EvaluateSurfacePoint(data_.sites[k], neutral_.F, *mesh) -
+           f.bundles[k].observed)
+              .norm();
+    }
+  }
+  if (weights) *weights = w;
+  return f;
+}
+
+MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,
+                               const JawPose& jaw) const {
+  const int V = data_.num_vertices, N = data_.num_shapes;
+  HMC_CHECK(weights.size() == N);
+  std::vector<int> used;
+  for (int n = 0; n < N; ++n) {
+    if (weights[n] != 0) used.push_back(n);
+  }
+  MatX3d out(V, 3);
+  ParallelFor(
+      0, V,
+      [&](int64_t v) {
+        Vec3 x = neutral_.V.row(v).transpose();
+        const float* b = data_.VertexDisplacements(static_cast<int>(v));
+        for (int n : used) {
+          const float* bn = b + static_cast<size_t>(n) * 3;
+          x[0] += weights[n] * bn[0];
+          x[1] += weights[n] * bn[1];
+          x[2] += weights[n] * bn[2];
+        }
+        out.row(v) = x.transpose();
+      },
+      256);
+  if (data_.jaw_rig) return Skin(*data_.jaw_rig, jaw, out);
+  return out;
+}
+
+SolveResult BlendshapeSolver::SolveSequence(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors,
+    std::vector<Eigen::VectorXd>* weights) const {
+  if (weights) {
+    weights->assign(frames.size(), Eigen::VectorXd());
+  }
+  return RunBaselineSequence(
+      data_, neutral_, frames, jaw, frame_errors,
+      [&](int index, const BundleFrame& b, const JawPose& pose, MatX3d* mesh) {
+        Eigen::VectorXd w;
+        FrameSolve fs = SolveFrame(b, pose, &w, mesh);
+        if (weights && fs.ok) (*weights)[index] = std::move(w);
+        return fs;
+      },
+      options_.bounded ? "blendshape-bounded" : "blendshape");
+}
+
+}  // namespace hmc

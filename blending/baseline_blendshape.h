@@ -1,0 +1,110 @@
+// The `blendshape` and `blendshape-bounded` baselines (DESIGN.md section 5):
+// one set of weights over ALL dataset shapes, fitted so the bundles' surface
+// points land on the observed positions -- what a rig solver does. Same
+// inputs and outputs as the lgi solve (blending/lgi_solver.h): per frame,
+// bundles by marker name and a jaw pose in, a V x 3 mesh and a FrameSolve
+// out; bad frames are flagged and repeat the previous good mesh.
+//
+// With a jaw rig the fit runs on unskinned shapes and unskinned bundles
+// (indexing/shape_data.h, as lgi does) and the result is skinned with the
+// frame's jaw pose, so the comparison with lgi is like for like.
+//
+// Objective over weights w (N), bundle displacements d_k = p*_k - x0(s_k),
+// shapes at the sites B_k (3 x N):
+//   E(w) = sum_k |B_k w - d_k|^2 + lambda |w|^2
+//          + mu sum_n (max(0, -w_n)^2 + max(0, w_n - 1)^2)      (soft)
+// or the first two terms subject to 0 <= w <= 1                   (bounded).
+// The soft objective is convex and piecewise quadratic: Newton steps on the
+// current active penalty sets with a backtracking line search reach its
+// minimum in a few iterations. The bounded one is a box-constrained QP,
+// solved by projected Newton (Bertsekas 1982, "Projected Newton methods for
+// optimization problems with simple constraints"). The normal matrix
+// H = sum_k B_k^T B_k + lambda I is precomputed once per actor; a frame with
+// missing bundles subtracts their rank-3 terms.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "blending/lgi_solver.h"
+#include "core/frame_data.h"
+#include "core/mesh.h"
+#include "core/options.h"
+#include "indexing/shape_data.h"
+
+namespace hmc {
+
+struct BlendshapeOptions {
+  bool bounded = false;      // hard bounds 0 <= w <= 1 instead of the penalty
+  double penalty = 100.0;    // mu: weight of the soft [0,1] penalty
+                             // (mm^2 per unit of weight^2)
+  double tikhonov = 1e-6;    // lambda: |w|^2 regulariser for conditioning
+                             // (mm^2 per unit of weight^2)
+  int max_iterations = 100;  // Newton iterations per frame
+  double min_bundle_fraction = 0.5;  // frames with fewer observed bundles
+                                     // (fraction of markers) are bad
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// min 1/2 w^T Q w - c^T w + 1/2 mu sum_n (max(0,-w_n)^2 + max(0,w_n-1)^2).
+// Q: N x N symmetric positive definite; c: N. Returns N weights.
+Eigen::VectorXd SolveSoftBoxQp(const Eigen::MatrixXd& Q,
+                               const Eigen::VectorXd& c, double mu,
+                               int max_iterations);
+// min 1/2 w^T Q w - c^T w subject to 0 <= w <= 1. Q: N x N symmetric
+// positive definite; c: N. Returns N weights in [0, 1].
+Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
+                                  const Eigen::VectorXd& c, int max_iterations);
+
+// Runs a per-frame baseline over a sequence with the lgi conventions
+// (LgiSolver::SolveSequence): frame_errors (empty or one per frame) marks
+// frames bad; a bad frame, or one `solve` returns !ok, repeats the previous
+// good mesh (the jaw-skinned neutral before the first good one). `solve`
+// gets the frame's position in `frames` and fills its mesh when ok. jaw: one
+// pose per frame, or empty. Frames are solved in order, one at a time (each
+// solve is parallel inside).
+using BaselineFrameFn = std::function<FrameSolve(int index, const BundleFrame&,
+                                                 const JawPose&, MatX3d*)>;
+SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
+                                const std::vector<BundleFrame>& frames,
+                                const std::vector<JawPose>& jaw,
+                                const std::vector<std::string>& frame_errors,
+                                const BaselineFrameFn& solve,
+                                const std::string& name);
+
+class BlendshapeSolver {
+ public:
+  // neutral (V x 3, triangles) and data must outlive the solver.
+  BlendshapeSolver(const TriMesh& neutral, const ShapeData& data,
+                   const BlendshapeOptions& options);
+
+  // Fits the weights for one frame; on success fills *weights (N) and, if
+  // mesh is given, the skinned result (V x 3) and each bundle's residual.
+  FrameSolve SolveFrame(const BundleFrame& bundles, const JawPose& jaw,
+                        Eigen::VectorXd* weights, MatX3d* mesh) const;
+
+  // x = Skin(x0 + sum_n w_n b*_n, jaw): V x 3 (mm). weights: N.
+  MatX3d Blend(const Eigen::VectorXd& weights, const JawPose& jaw) const;
+
+  // All frames; `weights` (optional) receives each frame's weights (empty
+  // for bad frames).
+  SolveResult SolveSequence(
+      const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+      const std::vector<std::string>& frame_errors = {},
+      std::vector<Eigen::VectorXd>* weights = nullptr) const;
+
+ private:
+  const TriMesh& neutral_;
+  const ShapeData& data_;
+  BlendshapeOptions options_;
+  std::unordered_map<std::string, int> marker_index_;
+  Eigen::MatrixXd site_shapes_;  // 3K x N: rows 3k..3k+2 are B_k
+  Eigen::MatrixXd normal_;       // N x N: sum_k B_k^T B_k + lambda I
+};
+
+}  // namespace hmc

@@ -1,0 +1,234 @@
+#include "blending/baseline_blendshape.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/jaw.h"
+#include "synth/synth_actor.h"
+
+namespace hmc {
+namespace {
+
+Actor SmallActor(int seed, bool inbetweens) {
+  SynthActorOptions o;
+  o.seed = seed;
+  o.grid_u = 40;
+  o.grid_v = 32;
+  o.dataset_inbetweens = inbetweens;
+  o.dataset_combos = false;
+  return SynthesizeActor(o);
+}
+
+// Bundles of the blend x0 + sum w_n b*_n at the sites, skinned by `jaw`.
+BundleFrame BundlesOf(const ShapeData& data, const Eigen::VectorXd& w,
+                      const JawPose& jaw, int frame) {
+  BundleFrame b;
+  b.frame = frame;
+  for (int k = 0; k < data.num_bundles; ++k) {
+    Vec3 u = data.site_neutral.row(k).transpose();
+    for (int n = 0; n < data.num_shapes; ++n) {
+      u += w[n] * data.SiteDisplacement(n, k);
+    }
+    b.bundles[data.bundle_names[k]] = SkinBundle(data, k, jaw, u);
+  }
+  return b;
+}
+
+// The objective the solvers minimise, in their (1/2 Q, c) form.
+double Objective(const Eigen::MatrixXd& Q, const Eigen::VectorXd& c,
+                 const Eigen::VectorXd& w) {
+  return 0.5 * w.dot(Q * w) - c.dot(w);
+}
+
+class BoxQp : public ::testing::TestWithParam<int> {};
+
+// Brute force over every assignment of each variable to {lower bound, upper
+// bound, free}: the feasible stationary points include the optimum.
+TEST_P(BoxQp, BoundedMatchesEnumerationOfActiveSets) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> g(0, 1);
+  const int N = 4;
+  for (int trial = 0; trial < 20; ++trial) {
+    Eigen::MatrixXd A(6, N);
+    for (int i = 0; i < A.size(); ++i) A.data()[i] = g(rng);
+    const Eigen::MatrixXd Q =
+        A.transpose() * A + 1e-3 * Eigen::MatrixXd::Identity(N, N);
+    Eigen::VectorXd c(N);
+    for (int i = 0; i < N; ++i) c[i] = 2 * g(rng);
+    double best = 1e300;
+    for (int code = 0; code < 81; ++code) {
+      Eigen::VectorXd w = Eigen::VectorXd::Zero(N);
+      std::vector<int> free;
+      int x = code;
+      for (int i = 0; i < N; ++i, x /= 3) {
+        if (x % 3 == 1) w[i] = 1;
+        if (x % 3 == 2) free.push_back(i);
+      }
+      if (!free.empty()) {
+        const int M = static_cast<int>(free.size());
+        Eigen::MatrixXd Qf(M, M);
+        Eigen::VectorXd r(M);
+        for (int a = 0; a < M; ++a) {
+          r[a] = c[free[a]];
+          for (int i = 0; i < N; ++i) {
+            if (std::find(free.begin(), free.end(), i) == free.end()) {
+              r[a] -= Q(free[a], i) * w[i];
+            }
+          }
+          for (int b = 0; b < M; ++b) Qf(a, b) = Q(free[a], free[b]);
+        }
+        const Eigen::VectorXd wf = Qf.ldlt().solve(r);
+        for (int a = 0; a < M; ++a) w[free[a]] = wf[a];
+      }
+      if (w.minCoeff() < -1e-12 || w.maxCoeff() > 1 + 1e-12) continue;
+      best = std::min(best, Objective(Q, c, w));
+    }
+    const Eigen::VectorXd w = SolveBoundedBoxQp(Q, c, 100);
+    EXPECT_GE(w.minCoeff(), 0.0);
+    EXPECT_LE(w.maxCoeff(), 1.0);
+    EXPECT_NEAR(Objective(Q, c, w), best, 1e-9 * (1 + std::abs(best)));
+  }
+}
+
+// The soft objective is C1 and convex: its minimum is where its gradient
+// Q w - c + mu (min(w, 0) + max(w - 1, 0)) vanishes.
+TEST_P(BoxQp, SoftReachesAStationaryPoint) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> g(0, 1);
+  const int N = 12;
+  for (double mu : {0.0, 1.0, 100.0, 1e4}) {
+    Eigen::MatrixXd A(20, N);
+    for (int i = 0; i < A.size(); ++i) A.data()[i] = g(rng);
+    const Eigen::MatrixXd Q = A.transpose() * A;
+    Eigen::VectorXd c(N);
+    for (int i = 0; i < N; ++i) c[i] = 5 * g(rng);
+    const Eigen::VectorXd w = SolveSoftBoxQp(Q, c, mu, 100);
+    const Eigen::VectorXd grad =
+        Q * w - c + mu * (w.cwiseMin(0.0) + (w.array() - 1).max(0.0).matrix());
+    EXPECT_LT(grad.norm(), 1e-8 * (1 + c.norm())) << "mu " << mu;
+    // More penalty, closer to the box.
+    if (mu > 0) {
+      const Eigen::VectorXd unconstrained = Q.ldlt().solve(c);
+      auto outside = [](const Eigen::VectorXd& x) {
+        return (x.cwiseMin(0.0) + (x.array() - 1).max(0.0).matrix()).norm();
+      };
+      EXPECT_LE(outside(w), outside(unconstrained) + 1e-12);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, BoxQp, ::testing::Values(1, 2, 3, 4));
+
+class BlendshapeSeeded : public ::testing::TestWithParam<int> {};
+
+TEST_P(BlendshapeSeeded, RecoversKnownWeightsInTheBox) {
+  const int seed = GetParam();
+  const Actor actor = SmallActor(seed, /*inbetweens=*/false);
+  const ShapeData data = ComputeShapeData(actor);
+  ASSERT_GT(3 * data.num_bundles, data.num_shapes);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::VectorXd truth(data.num_shapes);
+  for (int n = 0; n < truth.size(); ++n) truth[n] = u(rng) < 0.3 ? 0 : u(rng);
+  JawPose jaw;
+  jaw.open_deg = 8 * u(rng);
+  jaw.lateral_deg = u(rng) - 0.5;
+  const BundleFrame frame = BundlesOf(data, truth, jaw, 1);
+  const MatX3d expected = [&] {
+    MatX3d x = actor.neutral.V;
+    for (int v = 0; v < data.num_vertices; ++v) {
+      for (int n = 0; n < data.num_shapes; ++n) {
+        for (int a = 0; a < 3; ++a) {
+          x(v, a) += truth[n] * data.VertexDisplacements(v)[3 * n + a];
+        }
+      }
+    }
+    return data.jaw_rig ? Skin(*data.jaw_rig, jaw, x) : x;
+  }();
+  for (bool bounded : {false, true}) {
+    BlendshapeOptions options;
+    options.bounded = bounded;
+    options.tikhonov = 1e-12;  // exact recovery needs no bias
+    const BlendshapeSolver solver(actor.neutral, data, options);
+    Eigen::VectorXd w;
+    MatX3d mesh;
+    const FrameSolve fs = solver.SolveFrame(frame, jaw, &w, &mesh);
+    ASSERT_TRUE(fs.ok) << fs.reason;
+    EXPECT_LT((w - truth).lpNorm<Eigen::Infinity>(), 1e-6)
+        << "bounded " << bounded;
+    EXPECT_LT((mesh - expected).cwiseAbs().maxCoeff(), 1e-5);
+    // The residual is the skinned truth's own: skinning a surface point of
+    // a deformed triangle is not exactly skinning its vertices
+    // (indexing/shape_data.h).
+    for (int k = 0; k < data.num_bundles; ++k) {
+      const double own =
+          (EvaluateSurfacePoint(data.sites[k], actor.neutral.F, expected) -
+           frame.bundles.at(data.bundle_names[k]))
+              .norm();
+      EXPECT_NEAR(fs.bundles[k].residual, own, 1e-5);
+    }
+  }
+}
+
+TEST_P(BlendshapeSeeded, BoundedStaysInTheBoxAndSoftIsPulledTowardIt) {
+  const int seed = GetParam();
+  const Actor actor = SmallActor(seed, /*inbetweens=*/true);
+  const ShapeData data = ComputeShapeData(actor);
+  std::mt19937 rng(seed + 100);
+  std::uniform_real_distribution<double> u(-0.8, 1.8);
+  Eigen::VectorXd truth(data.num_shapes);
+  for (int n = 0; n < truth.size(); ++n) truth[n] = u(rng);
+  BundleFrame frame = BundlesOf(data, truth, JawPose(), 3);
+  // A few markers missing.
+  for (int k = 0; k < data.num_bundles; k += 7) {
+    frame.bundles.erase(data.bundle_names[k]);
+  }
+  BlendshapeOptions soft_options, hard_options;
+  hard_options.bounded = true;
+  Eigen::VectorXd soft, hard;
+  ASSERT_TRUE(BlendshapeSolver(actor.neutral, data, soft_options)
+                  .SolveFrame(frame, JawPose(), &soft, nullptr)
+                  .ok);
+  ASSERT_TRUE(BlendshapeSolver(actor.neutral, data, hard_options)
+                  .SolveFrame(frame, JawPose(), &hard, nullptr)
+                  .ok);
+  EXPECT_GE(hard.minCoeff(), 0.0);
+  EXPECT_LE(hard.maxCoeff(), 1.0);
+  auto outside = [](const Eigen::VectorXd& x) {
+    return (x.cwiseMin(0.0) + (x.array() - 1).max(0.0).matrix()).norm();
+  };
+  EXPECT_LT(outside(soft), outside(truth));
+}
+
+TEST_P(BlendshapeSeeded, SequenceFlagsBadFramesAndKeepsTheLastGoodMesh) {
+  const int seed = GetParam();
+  const Actor actor = SmallActor(seed, /*inbetweens=*/false);
+  const ShapeData data = ComputeShapeData(actor);
+  Eigen::VectorXd w = Eigen::VectorXd::Constant(data.num_shapes, 0.2);
+  std::vector<BundleFrame> frames = {BundlesOf(data, w, JawPose(), 1),
+                                     BundlesOf(data, w, JawPose(), 2),
+                                     BundlesOf(data, 2 * w, JawPose(), 3)};
+  // Frame 2 keeps only two markers: too few.
+  while (frames[1].bundles.size() > 2) {
+    frames[1].bundles.erase(frames[1].bundles.begin());
+  }
+  const BlendshapeSolver solver(actor.neutral, data, BlendshapeOptions());
+  std::vector<Eigen::VectorXd> weights;
+  const SolveResult r = solver.SolveSequence(frames, {}, {}, &weights);
+  ASSERT_EQ(r.meshes.size(), 3u);
+  EXPECT_TRUE(r.frames[0].ok);
+  EXPECT_FALSE(r.frames[1].ok);
+  EXPECT_FALSE(r.frames[1].reason.empty());
+  EXPECT_TRUE(r.frames[2].ok);
+  EXPECT_EQ(r.summary.bad_frames, 1);
+  EXPECT_EQ((r.meshes[1] - r.meshes[0]).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((r.meshes[2] - r.meshes[0]).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(weights[1].size(), 0);
+  EXPECT_EQ(weights[2].size(), data.num_shapes);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, BlendshapeSeeded, ::testing::Values(1, 2, 5));
+
+}  // namespace
+}  // namespace hmc
