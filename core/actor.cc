@@ -19,6 +19,7 @@
 #include "core/logging.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
+#include "core/triangle.h"
 
 namespace hmc {
 
@@ -438,39 +439,6 @@ PackageEntry ParseActorYaml(const std::string& text, const fs::path& file) {
 // ---------------------------------------------------------------------------
 // markers.csv
 
-// Closest point to p on triangle (a, b, c), as barycentric weights
-// (Ericson, Real-Time Collision Detection, 2005, section 5.1.5).
-Vec3 ClosestBarycentric(const Vec3& p, const Vec3& a, const Vec3& b,
-                        const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return Vec3(1, 0, 0);
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return Vec3(0, 1, 0);
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return Vec3(1 - v, v, 0);
-  }
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return Vec3(0, 0, 1);
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return Vec3(1 - w, 0, w);
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return Vec3(0, 1 - w, w);
-  }
-  const double denom = 1.0 / (va + vb + vc);
-  const double v = vb * denom, w = vc * denom;
-  return Vec3(1 - v - w, v, w);
-}
-
 // First triangle using each vertex (-1: none), for vertex markers.
 std::vector<int> FirstFaceOfVertex(const TriMesh& mesh) {
   std::vector<int> first(mesh.NumVertices(), -1);
@@ -524,7 +492,7 @@ SurfacePoint PointOnPolygon(const TriMesh& mesh, const ObjPolygons& polygons,
     const int t = first + j;
     const Vec3 a = mesh.V.row(mesh.F(t, 0)), b = mesh.V.row(mesh.F(t, 1)),
                c = mesh.V.row(mesh.F(t, 2));
-    const Vec3 bary = ClosestBarycentric(p, a, b, c);
+    const Vec3 bary = ClosestPointBarycentrics(p, a, b, c);
     const double distance = (bary[0] * a + bary[1] * b + bary[2] * c - p).norm();
     if (distance < best) {
       best = distance;

@@ -1,5 +1,7 @@
 #include "indexing/simplex.h"
 
+#include "core/triangle.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -33,63 +35,12 @@ bool TetBarycentric(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d,
 
 ClosestPoint ClosestPointOnTriangle(const Vec3& a, const Vec3& b,
                                     const Vec3& c, const Vec3& p) {
+  const Vec3 w = ClosestPointBarycentrics(p, a, b, c);
   ClosestPoint out;
-  auto finish = [&](double u, double v, double w) {
-    out.weights = {u, v, w, 0.0};
-    out.point = u * a + v * b + w * c;
-    out.distance = (out.point - p).norm();
-    return out;
-  };
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return finish(1, 0, 0);
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return finish(0, 1, 0);
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return finish(1 - v, v, 0);
-  }
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return finish(0, 0, 1);
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return finish(1 - w, 0, w);
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return finish(0, 1 - w, w);
-  }
-  const double denom = va + vb + vc;
-  if (!(std::abs(denom) > 0)) {
-    // Degenerate (collinear) triangle: the nearest of its three edges.
-    ClosestPoint best;
-    best.distance = std::numeric_limits<double>::infinity();
-    const std::array<std::array<int, 2>, 3> edges = {{{0, 1}, {0, 2}, {1, 2}}};
-    const std::array<Vec3, 3> x = {a, b, c};
-    for (const auto& e : edges) {
-      const Vec3 d = x[e[1]] - x[e[0]];
-      const double len2 = d.squaredNorm();
-      const double t =
-          len2 > 0 ? std::clamp((p - x[e[0]]).dot(d) / len2, 0.0, 1.0) : 0.0;
-      const Vec3 q = x[e[0]] + t * d;
-      const double dist = (q - p).norm();
-      if (dist < best.distance) {
-        best = ClosestPoint();
-        best.point = q;
-        best.distance = dist;
-        best.weights[e[0]] = 1 - t;
-        best.weights[e[1]] = t;
-      }
-    }
-    return best;
-  }
-  const double v = vb / denom, w = vc / denom;
-  return finish(1 - v - w, v, w);
+  out.weights = {w[0], w[1], w[2], 0.0};
+  out.point = w[0] * a + w[1] * b + w[2] * c;
+  out.distance = (out.point - p).norm();
+  return out;
 }
 
 ClosestPoint ClosestPointOnSimplex(const SimplexCorners& s, const Vec3& p,

@@ -14,6 +14,7 @@
 
 #include "core/actor.h"
 #include "core/file_util.h"
+#include "tests/cli_runner.h"
 
 namespace hmc {
 namespace {
@@ -24,25 +25,6 @@ fs::path FixtureDir() {
   const char* source = std::getenv("HMC_SOURCE_DIR");
   const fs::path root = source != nullptr ? fs::path(source) : fs::current_path();
   return root / "tests" / "fixtures" / "dcc_actor";
-}
-
-struct Result {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-Result RunHmc(const std::string& arguments, const fs::path& scratch) {
-  const fs::path out = scratch / "stdout.txt";
-  const fs::path err = scratch / "stderr.txt";
-  const std::string command = fmt::format("'{}' {} >'{}' 2>'{}'", HMC_BINARY,
-                                          arguments, out.string(), err.string());
-  const int status = std::system(command.c_str());
-  Result result;
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  result.out = ReadFile(out);
-  result.err = ReadFile(err);
-  return result;
 }
 
 class ActorCheck : public ::testing::Test {
@@ -61,7 +43,7 @@ class ActorCheck : public ::testing::Test {
 };
 
 TEST_F(ActorCheck, JsonSummaryAgreesWithTheLoadedActor) {
-  const Result result =
+  const CliResult result =
       RunHmc(fmt::format("-q actor check '{}' --json", FixtureDir().string()),
              scratch_);
   ASSERT_EQ(result.exit_code, 0) << result.err;
@@ -91,7 +73,7 @@ TEST_F(ActorCheck, JsonSummaryAgreesWithTheLoadedActor) {
 }
 
 TEST_F(ActorCheck, TextSummaryNamesTheActor) {
-  const Result result = RunHmc(
+  const CliResult result = RunHmc(
       fmt::format("-q actor check '{}'", FixtureDir().string()), scratch_);
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("dcc_actor"), std::string::npos) << result.out;
@@ -104,7 +86,7 @@ TEST_F(ActorCheck, BadPackageExitsNonZeroNamingTheFile) {
   std::string markers = ReadFile(package / "markers.csv");
   markers.replace(markers.find("brow_r,20,"), 10, "brow_r,99,");
   WriteFileAtomic(package / "markers.csv", markers);
-  const Result result = RunHmc(
+  const CliResult result = RunHmc(
       fmt::format("-q actor check '{}' --json", package.string()), scratch_);
   EXPECT_EQ(result.exit_code, 2);
   EXPECT_NE(result.err.find("markers.csv:4:"), std::string::npos) << result.err;
@@ -112,7 +94,7 @@ TEST_F(ActorCheck, BadPackageExitsNonZeroNamingTheFile) {
 }
 
 TEST_F(ActorCheck, MissingFolderExitsNonZero) {
-  const Result result = RunHmc(
+  const CliResult result = RunHmc(
       fmt::format("-q actor check '{}'", (scratch_ / "absent").string()), scratch_);
   EXPECT_EQ(result.exit_code, 2);
   EXPECT_NE(result.err.find("absent"), std::string::npos) << result.err;

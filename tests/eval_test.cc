@@ -20,6 +20,7 @@
 
 #include "core/actor.h"
 #include "core/file_util.h"
+#include "tests/cli_runner.h"
 #include "core/image_io.h"
 #include "core/mesh_sequence.h"
 #include "synth/synth_actor.h"
@@ -28,26 +29,6 @@ namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Result {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-Result RunHmc(const std::string& arguments, const fs::path& scratch) {
-  const fs::path out = scratch / "stdout.txt";
-  const fs::path err = scratch / "stderr.txt";
-  const std::string command =
-      fmt::format("'{}' {} >'{}' 2>'{}'", HMC_BINARY, arguments, out.string(),
-                  err.string());
-  const int status = std::system(command.c_str());
-  Result r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = ReadFile(out);
-  r.err = ReadFile(err);
-  return r;
-}
 
 // A PC2 file parsed from its bytes (little endian): "POINTCACHE2\0",
 // int32 version, int32 points, float start, float rate, int32 samples, then
@@ -143,7 +124,7 @@ TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
   WriteMeshSequence(dir / "truth.pc2", truth);
   WriteMeshSequence(dir / "recon.pc2", recon);
 
-  const Result r = RunHmc(
+  const CliResult r = RunHmc(
       fmt::format("eval --actor '{}' --truth '{}' --recon '{}' --out '{}' "
                   "--frames 6,9 --json --uv_resolution 64 --image_width 96 "
                   "--image_height 120",
@@ -243,7 +224,7 @@ TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
   EXPECT_FALSE(fs::exists(out / "frame_000007.png"));
 
   // Identical sequences: every error is zero.
-  const Result same =
+  const CliResult same =
       RunHmc(fmt::format("eval --actor '{}' --truth '{}' --recon '{}' --json",
                          (dir / "actor").string(), (dir / "truth.pc2").string(),
                          (dir / "truth.pc2").string()),
@@ -254,7 +235,7 @@ TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
   EXPECT_EQ(js["overall"]["detail_all_mm"].get<double>(), 0.0);
 
   // The readable table.
-  const Result table =
+  const CliResult table =
       RunHmc(fmt::format("eval --actor '{}' --truth '{}' --recon '{}'",
                          (dir / "actor").string(), (dir / "truth.pc2").string(),
                          (dir / "recon.pc2").string()),
@@ -266,7 +247,7 @@ TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
   MeshSequence wrong;
   wrong.frames.push_back(MatX3d::Zero(V - 1, 3));
   WriteMeshSequence(dir / "wrong.pc2", wrong);
-  const Result bad =
+  const CliResult bad =
       RunHmc(fmt::format("eval --actor '{}' --truth '{}' --recon '{}'",
                          (dir / "actor").string(), (dir / "truth.pc2").string(),
                          (dir / "wrong.pc2").string()),

@@ -17,6 +17,7 @@
 
 #include "core/actor.h"
 #include "core/file_util.h"
+#include "tests/cli_runner.h"
 #include "core/frame_data.h"
 #include "core/mesh_sequence.h"
 #include "synth/synth_actor.h"
@@ -25,25 +26,6 @@ namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Result {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-Result RunHmc(const std::string& arguments, const fs::path& scratch) {
-  const fs::path out = scratch / "stdout.txt";
-  const fs::path err = scratch / "stderr.txt";
-  const std::string command = fmt::format("'{}' {} >'{}' 2>'{}'", HMC_BINARY,
-                                          arguments, out.string(), err.string());
-  const int status = std::system(command.c_str());
-  Result r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = ReadFile(out);
-  r.err = ReadFile(err);
-  return r;
-}
 
 class SolveCli : public ::testing::TestWithParam<int> {};
 
@@ -86,14 +68,14 @@ TEST_P(SolveCli, DISABLED_VerificationThroughTheCli) {
   WriteJawCsv(dir / "jaw.csv", jaw);
   const std::string common = "--nn.uv_resolution 512";
 
-  const Result index = RunHmc(
+  const CliResult index = RunHmc(
       fmt::format("index --actor '{}' {}", (dir / "actor").string(), common),
       dir);
   ASSERT_EQ(index.exit_code, 0) << index.err;
   EXPECT_NE(index.out.find("total:"), std::string::npos) << index.out;
   ASSERT_TRUE(fs::exists(dir / "actor" / "lgi_index.bin"));
 
-  const Result solve = RunHmc(
+  const CliResult solve = RunHmc(
       fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' "
                   "--diagnostics '{}' {}",
                   (dir / "actor").string(), (dir / "bundles.csv").string(),
@@ -137,7 +119,7 @@ TEST_P(SolveCli, DISABLED_VerificationThroughTheCli) {
   }
 
   // Changed index options: the cache is rebuilt, not reused.
-  const Result rebuilt = RunHmc(
+  const CliResult rebuilt = RunHmc(
       fmt::format("index --actor '{}' {} --index.min_tet_quality 0.01",
                   (dir / "actor").string(), common),
       dir);

@@ -1,0 +1,796 @@
+#include "synth/footage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/raster.h"
+#include "synth/synth_random.h"
+
+namespace hmc {
+
+void FootageRenderOptions::Register(OptionFields* fields) {
+  fields->SetGroup("render");
+  fields->Add("dot_radius", &dot_radius, "painted dot radius in the face plane (UV, mm)");
+  fields->Add("dot_albedo", &dot_albedo, "reflectance of the dot paint");
+  fields->Add("skin_albedo", &skin_albedo, "mean skin reflectance");
+  fields->Add("albedo_variation", &albedo_variation,
+              "relative amplitude of the skin's albedo variation");
+  fields->Add("tag_white", &tag_white, "reflectance of the tags' white");
+  fields->Add("tag_black", &tag_black, "reflectance of the tags' black");
+  fields->Add("background", &background, "radiance where nothing is hit");
+  fields->Add("ambient", &ambient, "ambient light (fraction of full exposure)");
+  fields->Add("light_power", &light_power,
+              "each head light's irradiance at 170 mm, head-on (fraction of full exposure)");
+  fields->Add("light_offset", &light_offset, "head light offset beside each camera (mm)");
+  fields->Add("vignetting", &vignetting, "darkening at the image corner (0 = off)");
+  fields->Add("read_noise", &read_noise, "std of the sensor read noise (8-bit levels; 0 = off)");
+  fields->Add("shot_noise", &shot_noise, "shot-noise variance per level of signal (0 = off)");
+  fields->Add("motion_blur_samples", &motion_blur_samples,
+              "sub-frame samples over the shutter (1 = off)");
+  fields->Add("shutter", &shutter, "exposure as a fraction of the frame interval");
+  fields->Add("defocus_px", &defocus_px, "Gaussian defocus blur sigma (px; 0 = off)");
+  fields->Add("max_edge_error_px", &max_edge_error_px, "fisheye subdivision tolerance (px)");
+  fields->SetGroup("");
+}
+
+bool FootageRenderOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("render options: {}", message);
+    ok = false;
+  };
+  auto unit = [](double x) { return x >= 0 && x <= 1; };
+  if (!(dot_radius > 0.1 && dot_radius < 20)) fail("dot_radius must be in (0.1, 20) mm");
+  if (!unit(dot_albedo) || !unit(skin_albedo) || !unit(tag_white) || !unit(tag_black) ||
+      !unit(background)) {
+    fail("reflectances and background must be in [0, 1]");
+  }
+  if (!(albedo_variation >= 0 && albedo_variation < 1)) fail("albedo_variation must be in [0, 1)");
+  if (!(ambient >= 0 && ambient <= 2) || !(light_power >= 0 && light_power <= 10)) {
+    fail("ambient must be in [0, 2] and light_power in [0, 10]");
+  }
+  if (!(light_offset >= 0 && light_offset < 200)) fail("light_offset must be in [0, 200) mm");
+  if (!unit(vignetting)) fail("vignetting must be in [0, 1]");
+  if (!(read_noise >= 0 && read_noise < 50) || !(shot_noise >= 0 && shot_noise < 10)) {
+    fail("read_noise must be in [0, 50) and shot_noise in [0, 10)");
+  }
+  if (motion_blur_samples < 1 || motion_blur_samples > 64) {
+    fail("motion_blur_samples must be in [1, 64]");
+  }
+  if (!(shutter > 0 && shutter <= 1)) fail("shutter must be in (0, 1]");
+  if (!(defocus_px >= 0 && defocus_px < 20)) fail("defocus_px must be in [0, 20)");
+  if (!(max_edge_error_px > 0.001 && max_edge_error_px <= 2)) {
+    fail("max_edge_error_px must be in (0.001, 2]");
+  }
+  return ok;
+}
+
+void FootageRenderOptions::SetClean() {
+  vignetting = 0;
+  read_noise = 0;
+  shot_noise = 0;
+  motion_blur_samples = 1;
+  defocus_px = 0;
+}
+
+namespace {
+
+// The Kannala-Brandt projection of FisheyeCamera::Project, inlined for the
+// renderer's hot loops; `max_theta` (the camera's MaxTheta) replaces the
+// per-point monotonicity check.
+struct FastFisheye {
+  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta;
+  explicit FastFisheye(const FisheyeCamera& c)
+      : fx(c.fx), fy(c.fy), cx(c.cx), cy(c.cy), k1(c.k[0]), k2(c.k[1]), k3(c.k[2]),
+        k4(c.k[3]), max_theta(c.MaxTheta()) {}
+  bool Project(const Vec3& p, Vec2* pixel) const {
+    const double r = std::sqrt(p.x() * p.x() + p.y() * p.y());
+    double scale;
+    if (r <= 1e-8 * p.z()) {
+      if (!(p.z() > 0)) return false;
+      scale = 1.0 / p.z();
+    } else {
+      if (!(r > 0)) return false;
+      const double theta = std::atan2(r, p.z());
+      if (!(theta < max_theta)) return false;
+      const double t2 = theta * theta;
+      scale = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) / r;
+    }
+    (*pixel)[0] = fx * scale * p.x() + cx;
+    (*pixel)[1] = fy * scale * p.y() + cy;
+    return true;
+  }
+};
+
+// A vertex of the subdivision: camera-frame point, its projection, and its
+// row in the output (>= 0: a mesh vertex; < 0: -(k + 1), the k-th new one).
+struct SubVertex {
+  Vec3 p;
+  Vec2 s;
+  int ref;
+};
+
+struct ChunkOut {
+  std::vector<Eigen::Vector3d> new_rows;
+  std::vector<std::array<int, 3>> tris;
+  std::vector<int> face;
+  int64_t input = 0;
+  int64_t split = 0;
+  double max_error = 0;
+};
+
+class Subdivider {
+ public:
+  Subdivider(const FastFisheye& camera, double tolerance, ChunkOut* out)
+      : camera_(camera), tolerance_(tolerance), out_(out) {}
+
+  // Midpoint sagitta of edge (a, b); depends on the edge alone (symmetric in
+  // a and b), so both triangles sharing an edge make the same decision.
+  // Returns false if the midpoint does not project.
+  bool EdgeError(const SubVertex& a, const SubVertex& b, SubVertex* mid,
+                 double* error) const {
+    mid->p = 0.5 * (a.p + b.p);
+    if (!camera_.Project(mid->p, &mid->s)) return false;
+    *error = (mid->s - 0.5 * (a.s + b.s)).norm();
+    return true;
+  }
+
+  // Emits triangle (a, b, c) of mesh face `face`, split where needed.
+  void Emit(const SubVertex& a, const SubVertex& b, const SubVertex& c, int face,
+            int depth) {
+    SubVertex m[3];
+    double err[3];
+    const SubVertex* v[3] = {&a, &b, &c};
+    bool split[3];
+    int num_split = 0;
+    for (int e = 0; e < 3; ++e) {
+      const SubVertex& p = *v[e];
+      const SubVertex& q = *v[(e + 1) % 3];
+      if (!EdgeError(p, q, &m[e], &err[e])) return;
+      // Edges shorter than a quarter pixel are not split further: their
+      // error is already far below any tolerance in practice.
+      split[e] = err[e] > tolerance_ && (p.s - q.s).norm() > 0.25 && depth < kMaxDepth;
+      num_split += split[e];
+    }
+    if (num_split == 0) {
+      out_->tris.push_back({a.ref, b.ref, c.ref});
+      out_->face.push_back(face);
+      out_->max_error = std::max({out_->max_error, err[0], err[1], err[2]});
+      return;
+    }
+    if (depth == 0) ++out_->split;
+    for (int e = 0; e < 3; ++e) {
+      if (split[e]) m[e].ref = AddVertex(m[e]);
+    }
+    if (num_split == 3) {
+      Emit(a, m[0], m[2], face, depth + 1);
+      Emit(m[0], b, m[1], face, depth + 1);
+      Emit(m[2], m[1], c, face, depth + 1);
+      Emit(m[0], m[1], m[2], face, depth + 1);
+      return;
+    }
+    // Rotate so that edge 0 (v0 v1) is split and, for two splits, edge 1 too.
+    int r = 0;
+    if (num_split == 1) {
+      while (!split[r]) ++r;
+    } else {
+      while (split[r]) ++r;  // r: the unsplit edge
+      r = (r + 1) % 3;
+    }
+    const SubVertex& v0 = *v[r];
+    const SubVertex& v1 = *v[(r + 1) % 3];
+    const SubVertex& v2 = *v[(r + 2) % 3];
+    const SubVertex& m01 = m[r];
+    if (num_split == 1) {
+      Emit(v0, m01, v2, face, depth + 1);
+      Emit(m01, v1, v2, face, depth + 1);
+    } else {
+      const SubVertex& m12 = m[(r + 1) % 3];
+      Emit(m01, v1, m12, face, depth + 1);
+      Emit(v0, m01, m12, face, depth + 1);
+      Emit(v0, m12, v2, face, depth + 1);
+    }
+  }
+
+ private:
+  static constexpr int kMaxDepth = 10;
+  int AddVertex(const SubVertex& v) {
+    out_->new_rows.emplace_back(v.s.x(), v.s.y(), v.p.norm());
+    return -static_cast<int>(out_->new_rows.size());
+  }
+  const FastFisheye& camera_;
+  double tolerance_;
+  ChunkOut* out_;
+};
+
+// Ray (origin 0, direction d) against the plane of triangle (p0, p1, p2)
+// (Moller & Trumbore 1997, without the inside test): distance along d and
+// barycentrics. Returns false if the ray is parallel to the plane.
+inline bool IntersectPlane(const Vec3& d, const Vec3& p0, const Vec3& p1, const Vec3& p2,
+                           double* dist, Vec3* bary) {
+  const Vec3 e1 = p1 - p0;
+  const Vec3 e2 = p2 - p0;
+  const Vec3 pvec = d.cross(e2);
+  const double det = e1.dot(pvec);
+  if (std::abs(det) < 1e-300) return false;
+  const double inv = 1.0 / det;
+  const Vec3 tvec = -p0;
+  const double u = tvec.dot(pvec) * inv;
+  const Vec3 qvec = tvec.cross(e1);
+  const double v = d.dot(qvec) * inv;
+  *dist = e2.dot(qvec) * inv;
+  *bary = Vec3(1 - u - v, u, v);
+  return true;
+}
+
+uint64_t Mix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
+// Standard normal draws, looked up by a per-pixel hash: sensor noise needs
+// a million draws per image, and Box-Muller per pixel cost more than the
+// whole shading. 2^16 values (256 KB, cache resident) picked at random per
+// pixel are, for a tracker, as good as independent draws.
+constexpr int kNormalTableBits = 16;
+const std::vector<float>& NormalTable() {
+  static const std::vector<float> table = [] {
+    std::vector<float> t(size_t{1} << kNormalTableBits);
+    SynthRandom rng(0x5eed);
+    for (float& v : t) v = static_cast<float>(rng.Normal());
+    return t;
+  }();
+  return table;
+}
+
+// Reference distance of the head lights' irradiance (mm).
+constexpr double kLightReferenceMm = 170.0;
+
+}  // namespace
+
+FisheyeTriangles SubdivideForFisheye(const FisheyeCamera& camera, const MatX3d& X_cam,
+                                     const MatX3i& F, double max_edge_error_px) {
+  const FastFisheye fast(camera);
+  const int num_vertices = static_cast<int>(X_cam.rows());
+  FisheyeTriangles out;
+  out.screen.resize(num_vertices, 3);
+  std::vector<char> ok(num_vertices, 0);
+  ParallelFor(
+      0, num_vertices,
+      [&](int64_t v) {
+        Vec2 s;
+        const Vec3 p = X_cam.row(v).transpose();
+        if (fast.Project(p, &s)) {
+          out.screen.row(v) << s.x(), s.y(), p.norm();
+          ok[v] = 1;
+        } else {
+          out.screen.row(v).setConstant(std::numeric_limits<double>::quiet_NaN());
+        }
+      },
+      1024);
+  const int num_faces = static_cast<int>(F.rows());
+  constexpr int kChunk = 2048;
+  const int num_chunks = (num_faces + kChunk - 1) / kChunk;
+  std::vector<ChunkOut> chunks(num_chunks);
+  ParallelFor(0, num_chunks, [&](int64_t chunk) {
+    ChunkOut& co = chunks[chunk];
+    Subdivider subdivider(fast, max_edge_error_px, &co);
+    const int end = std::min(num_faces, static_cast<int>((chunk + 1) * kChunk));
+    for (int f = static_cast<int>(chunk) * kChunk; f < end; ++f) {
+      SubVertex c[3];
+      bool valid = true;
+      for (int i = 0; i < 3; ++i) {
+        const int v = F(f, i);
+        if (v < 0 || v >= num_vertices || !ok[v]) {
+          valid = false;
+          break;
+        }
+        c[i] = {X_cam.row(v).transpose(), out.screen.row(v).head<2>().transpose(), v};
+      }
+      if (!valid) continue;
+      // Back faces (counter-clockwise seen from outside, camera at origin).
+      const Vec3 n = (c[1].p - c[0].p).cross(c[2].p - c[0].p);
+      if (!(n.dot(-c[0].p) > 0)) continue;
+      ++co.input;
+      subdivider.Emit(c[0], c[1], c[2], f, 0);
+    }
+  });
+  // Concatenate in chunk order: the same result whatever the schedule.
+  int64_t num_new = 0, num_tris = 0;
+  for (const ChunkOut& co : chunks) {
+    num_new += static_cast<int64_t>(co.new_rows.size());
+    num_tris += static_cast<int64_t>(co.tris.size());
+  }
+  out.screen.conservativeResize(num_vertices + num_new, 3);
+  out.F.resize(num_tris, 3);
+  out.face.resize(num_tris);
+  int64_t row = num_vertices, tri = 0;
+  for (const ChunkOut& co : chunks) {
+    const int64_t base = row;
+    for (const Eigen::Vector3d& r : co.new_rows) out.screen.row(row++) = r.transpose();
+    for (size_t t = 0; t < co.tris.size(); ++t, ++tri) {
+      for (int i = 0; i < 3; ++i) {
+        const int ref = co.tris[t][i];
+        out.F(tri, i) = ref >= 0 ? ref : static_cast<int>(base + (-ref - 1));
+      }
+      out.face[tri] = co.face[t];
+    }
+    out.stats.input_triangles += co.input;
+    out.stats.split_triangles += co.split;
+    out.stats.max_edge_error_px = std::max(out.stats.max_edge_error_px, co.max_error);
+  }
+  out.stats.output_triangles = num_tris;
+  return out;
+}
+
+FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
+                                 const std::vector<Marker>& markers, const HelmetRig& rig,
+                                 const FootageRenderOptions& options, uint64_t seed)
+    : rig_(rig), options_(options), F_(neutral.F), st_(st), markers_(markers) {
+  HMC_CHECK(st.rows() == neutral.NumVertices());
+  HMC_CHECK(options.Check());
+  const int num_vertices = neutral.NumVertices();
+  vertex_faces_.resize(num_vertices);
+  for (int f = 0; f < F_.rows(); ++f) {
+    for (int i = 0; i < 3; ++i) vertex_faces_[F_(f, i)].push_back(f);
+  }
+  // Dots: face-plane centres, binned by grid cell.
+  const Vec2 lo = st.colwise().minCoeff().transpose();
+  const Vec2 hi = st.colwise().maxCoeff().transpose();
+  grid_origin_ = lo - Vec2::Constant(cell_);
+  grid_w_ = static_cast<int>((hi.x() - grid_origin_.x()) / cell_) + 2;
+  grid_h_ = static_cast<int>((hi.y() - grid_origin_.y()) / cell_) + 2;
+  dot_grid_.resize(static_cast<size_t>(grid_w_) * grid_h_);
+  const double reach = options.dot_radius + 3.0;  // radius + anti-aliasing margin
+  for (size_t m = 0; m < markers.size(); ++m) {
+    const SurfacePoint& sp = markers[m].point;
+    Vec2 c = Vec2::Zero();
+    if (sp.face >= 0 && sp.face < F_.rows()) {
+      for (int i = 0; i < 3; ++i) c += sp.bary[i] * st.row(F_(sp.face, i)).transpose();
+    }
+    dot_st_.push_back(c);
+    if (sp.face < 0 || sp.face >= F_.rows()) continue;
+    const int x0 = static_cast<int>((c.x() - reach - grid_origin_.x()) / cell_);
+    const int x1 = static_cast<int>((c.x() + reach - grid_origin_.x()) / cell_);
+    const int y0 = static_cast<int>((c.y() - reach - grid_origin_.y()) / cell_);
+    const int y1 = static_cast<int>((c.y() + reach - grid_origin_.y()) / cell_);
+    for (int y = std::max(0, y0); y <= std::min(grid_h_ - 1, y1); ++y) {
+      for (int x = std::max(0, x0); x <= std::min(grid_w_ - 1, x1); ++x) {
+        dot_grid_[y * grid_w_ + x].push_back(static_cast<int>(m));
+      }
+    }
+  }
+  // Skin albedo variation: smooth random fields at 6 mm and 1.5 mm, upsampled
+  // bicubically to the texture, zero mean, in [-1, 1].
+  texture_origin_ = lo - Vec2::Constant(2.0);
+  const int tw = static_cast<int>((hi.x() - lo.x() + 4.0) / texel_) + 2;
+  const int th = static_cast<int>((hi.y() - lo.y() + 4.0) / texel_) + 2;
+  SynthRandom rng = SynthRandom::Stream(seed, 60);
+  cv::Mat field = cv::Mat::zeros(th, tw, CV_32F);
+  for (const auto& [spacing, weight] : {std::pair{6.0, 0.75}, std::pair{1.5, 0.25}}) {
+    const int cw = static_cast<int>(tw * texel_ / spacing) + 2;
+    const int ch = static_cast<int>(th * texel_ / spacing) + 2;
+    cv::Mat coarse(ch, cw, CV_32F);
+    for (int y = 0; y < ch; ++y) {
+      for (int x = 0; x < cw; ++x) coarse.at<float>(y, x) = static_cast<float>(rng.Uniform(-1, 1));
+    }
+    cv::Mat fine;
+    cv::resize(coarse, fine, cv::Size(tw, th), 0, 0, cv::INTER_CUBIC);
+    field += weight * fine;
+  }
+  albedo_texture_ = field;
+  for (const HelmetTag& tag : rig_.tags) patterns_.emplace_back(tag.id);
+  // Per camera: the exact ray of every pixel centre and the vignetting.
+  for (const HelmetCamera& hc : rig_.cameras) {
+    const FisheyeCamera& cam = hc.camera;
+    std::vector<Eigen::Vector3f> rays(static_cast<size_t>(cam.width) * cam.height);
+    cv::Mat vignette(cam.height, cam.width, CV_32F);
+    const double corner = std::hypot(std::max(cam.cx, cam.width - 1 - cam.cx),
+                                     std::max(cam.cy, cam.height - 1 - cam.cy));
+    ParallelFor(0, cam.height, [&](int64_t y) {
+      for (int x = 0; x < cam.width; ++x) {
+        Vec3 b;
+        if (!cam.Unproject(Vec2(x, static_cast<double>(y)), &b)) b = Vec3(0, 0, 0);
+        rays[y * cam.width + x] = b.cast<float>();
+        const double r = std::hypot(x - cam.cx, y - cam.cy) / corner;
+        vignette.at<float>(static_cast<int>(y), x) =
+            static_cast<float>(1.0 - options_.vignetting * r * r);
+      }
+    });
+    bearings_.push_back(std::move(rays));
+    vignette_.push_back(vignette);
+  }
+}
+
+double FootageRenderer::Albedo(const Vec2& st) const {
+  const double fx = (st.x() - texture_origin_.x()) / texel_;
+  const double fy = (st.y() - texture_origin_.y()) / texel_;
+  const int x0 = std::clamp(static_cast<int>(std::floor(fx)), 0, albedo_texture_.cols - 2);
+  const int y0 = std::clamp(static_cast<int>(std::floor(fy)), 0, albedo_texture_.rows - 2);
+  const double ax = std::clamp(fx - x0, 0.0, 1.0);
+  const double ay = std::clamp(fy - y0, 0.0, 1.0);
+  const float* r0 = albedo_texture_.ptr<float>(y0);
+  const float* r1 = albedo_texture_.ptr<float>(y0 + 1);
+  const double v = (1 - ay) * ((1 - ax) * r0[x0] + ax * r0[x0 + 1]) +
+                   ay * ((1 - ax) * r1[x0] + ax * r1[x0 + 1]);
+  return options_.skin_albedo * (1 + options_.albedo_variation * v);
+}
+
+void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_dots,
+                                cv::Mat* radiance, cv::Mat* depth, cv::Mat* surface,
+                                SubdivisionStats* stats) const {
+  const HelmetCamera& hc = rig_.cameras[camera];
+  const FisheyeCamera& cam = hc.camera;
+  const int width = cam.width, height = cam.height;
+  const Rigid3 cam_from_head = hc.cam_from_helmet * state.head_from_helmet.inverse();
+  const MatX3d& X_head = *state.X_head;
+  const int num_vertices = static_cast<int>(X_head.rows());
+  HMC_CHECK(num_vertices == st_.rows());
+  MatX3d X(num_vertices, 3);
+  const Mat3 R = cam_from_head.linear();
+  const Vec3 t = cam_from_head.translation();
+  ParallelFor(
+      0, num_vertices,
+      [&](int64_t v) { X.row(v) = (R * X_head.row(v).transpose() + t).transpose(); }, 2048);
+  // Smooth normals: area-weighted face normals summed per vertex.
+  const int num_faces = static_cast<int>(F_.rows());
+  MatX3d face_n(num_faces, 3);
+  ParallelFor(
+      0, num_faces,
+      [&](int64_t f) {
+        const Vec3 p0 = X.row(F_(f, 0)), p1 = X.row(F_(f, 1)), p2 = X.row(F_(f, 2));
+        face_n.row(f) = (p1 - p0).cross(p2 - p0).transpose();
+      },
+      2048);
+  MatX3d normal(num_vertices, 3);
+  ParallelFor(
+      0, num_vertices,
+      [&](int64_t v) {
+        Vec3 n = Vec3::Zero();
+        for (int f : vertex_faces_[v]) n += face_n.row(f).transpose();
+        const double len = n.norm();
+        normal.row(v) = (len > 0 ? Vec3(n / len) : Vec3(0, 0, -1)).transpose();
+      },
+      2048);
+
+  const FisheyeTriangles tris = SubdivideForFisheye(cam, X, F_, options_.max_edge_error_px);
+  if (stats) *stats = tris.stats;
+  RasterOptions raster_options;
+  raster_options.width = width;
+  raster_options.height = height;
+  const RasterBuffer buffer = Rasterize(tris.screen, Eigen::VectorXd(), tris.F, raster_options);
+
+  // Head lights beside every camera of the rig, in this camera's frame.
+  std::vector<Vec3> lights;
+  for (const HelmetCamera& other : rig_.cameras) {
+    const Vec3 centre_in_helmet = other.cam_from_helmet.inverse().translation();
+    const Vec3 side = other.cam_from_helmet.linear().transpose() * Vec3::UnitX();
+    lights.push_back(hc.cam_from_helmet * (centre_in_helmet + options_.light_offset * side));
+  }
+  auto shade = [&](const Vec3& p, const Vec3& n) {
+    double irradiance = options_.ambient;
+    for (const Vec3& light : lights) {
+      const Vec3 to_light = light - p;
+      const double dist2 = to_light.squaredNorm();
+      const double cosine = n.dot(to_light) / std::sqrt(dist2);
+      if (cosine > 0) {
+        irradiance += options_.light_power * cosine * kLightReferenceMm * kLightReferenceMm / dist2;
+      }
+    }
+    return irradiance;
+  };
+
+  // Tags in this camera's frame, with their image bounding boxes.
+  struct TagView {
+    Mat3 R;  // cam_from_tag rotation
+    Vec3 t;
+    double size;
+    int index;  // into rig_.tags
+    int x0, y0, x1, y1;
+  };
+  const FastFisheye fast(cam);
+  std::vector<TagView> tag_views;
+  for (size_t k = 0; k < rig_.tags.size(); ++k) {
+    const HelmetTag& tag = rig_.tags[k];
+    const Rigid3 cam_from_tag = hc.cam_from_helmet * tag.helmet_from_tag;
+    TagView tv{cam_from_tag.linear(), cam_from_tag.translation(), tag.size,
+               static_cast<int>(k), width, height, -1, -1};
+    const double half = patterns_[k].PlateHalfExtent() * tag.size;
+    bool all = true;
+    for (int e = 0; e < 4 && all; ++e) {
+      for (int k = 0; k <= 16; ++k) {
+        const double a = -half + 2 * half * k / 16.0;
+        const Vec3 local = e == 0   ? Vec3(a, -half, 0)
+                           : e == 1 ? Vec3(half, a, 0)
+                           : e == 2 ? Vec3(-a, half, 0)
+                                    : Vec3(-half, -a, 0);
+        Vec2 s;
+        if (!fast.Project(cam_from_tag * local, &s)) {
+          all = false;
+          break;
+        }
+        tv.x0 = std::min(tv.x0, static_cast<int>(std::floor(s.x())) - 2);
+        tv.y0 = std::min(tv.y0, static_cast<int>(std::floor(s.y())) - 2);
+        tv.x1 = std::max(tv.x1, static_cast<int>(std::ceil(s.x())) + 2);
+        tv.y1 = std::max(tv.y1, static_cast<int>(std::ceil(s.y())) + 2);
+      }
+    }
+    if (!all) continue;
+    tv.x0 = std::max(tv.x0, 0);
+    tv.y0 = std::max(tv.y0, 0);
+    tv.x1 = std::min(tv.x1, width - 1);
+    tv.y1 = std::min(tv.y1, height - 1);
+    tag_views.push_back(tv);
+  }
+
+  const std::vector<Eigen::Vector3f>& rays = bearings_[camera];
+  const double dot_r = options_.dot_radius;
+  ParallelFor(0, height, [&](int64_t y64) {
+    const int y = static_cast<int>(y64);
+    float* out_row = radiance->ptr<float>(y);
+    float* depth_row = depth ? depth->ptr<float>(y) : nullptr;
+    int32_t* surface_row = surface ? surface->ptr<int32_t>(y) : nullptr;
+    for (int x = 0; x < width; ++x) {
+      const int index = y * width + x;
+      const Vec3 d = rays[index].cast<double>();
+      double value = options_.background;
+      double dist = std::numeric_limits<double>::infinity();
+      int seen = -1;
+      // Face.
+      const int sub = buffer.triangle[index];
+      if (sub >= 0 && d.squaredNorm() > 0) {
+        const int f = tris.face[sub];
+        const Vec3 p0 = X.row(F_(f, 0)), p1 = X.row(F_(f, 1)), p2 = X.row(F_(f, 2));
+        double s;
+        Vec3 b;
+        if (IntersectPlane(d, p0, p1, p2, &s, &b) && s > 0) {
+          dist = s;
+          seen = f;
+          const Vec3 p = s * d;
+          Vec3 n = b[0] * normal.row(F_(f, 0)).transpose() +
+                   b[1] * normal.row(F_(f, 1)).transpose() +
+                   b[2] * normal.row(F_(f, 2)).transpose();
+          n.normalize();
+          const Vec2 st = b[0] * st_.row(F_(f, 0)).transpose() +
+                          b[1] * st_.row(F_(f, 1)).transpose() +
+                          b[2] * st_.row(F_(f, 2)).transpose();
+          double albedo = Albedo(st);
+          if (paint_dots) {
+            const int gx = static_cast<int>((st.x() - grid_origin_.x()) / cell_);
+            const int gy = static_cast<int>((st.y() - grid_origin_.y()) / cell_);
+            if (gx >= 0 && gy >= 0 && gx < grid_w_ && gy < grid_h_) {
+              double keep = 1.0;
+              bool have_jacobian = false;
+              // Derivatives of st per pixel step in x and y.
+              Eigen::Vector3d jx = Eigen::Vector3d::Zero(), jy = Eigen::Vector3d::Zero();
+              auto coords = [&](const Vec3& bb) -> Eigen::Vector3d {
+                const Vec2 q = bb[0] * st_.row(F_(f, 0)).transpose() +
+                               bb[1] * st_.row(F_(f, 1)).transpose() +
+                               bb[2] * st_.row(F_(f, 2)).transpose();
+                return Eigen::Vector3d(q.x(), q.y(), 0);
+              };
+              const Eigen::Vector3d here = coords(b);
+              for (int m : dot_grid_[gy * grid_w_ + gx]) {
+                const Eigen::Vector3d centre(dot_st_[m].x(), dot_st_[m].y(), 0);
+                const Eigen::Vector3d offset = here - centre;
+                const double len = offset.norm();
+                const double signed_mm = len - dot_r;
+                if (signed_mm > 2.5) continue;
+                if (!have_jacobian) {
+                  // The coordinates at the neighbouring pixels' rays on the
+                  // same plane.
+                  auto at = [&](int nx, int ny, Eigen::Vector3d* out) {
+                    const Vec3 dn = rays[ny * width + nx].cast<double>();
+                    double sn;
+                    Vec3 bn;
+                    if (!IntersectPlane(dn, p0, p1, p2, &sn, &bn)) return false;
+                    *out = coords(bn);
+                    return true;
+                  };
+                  const int nx = x + 1 < width ? x + 1 : x - 1;
+                  const int ny = y + 1 < height ? y + 1 : y - 1;
+                  Eigen::Vector3d sx, sy;
+                  if (!at(nx, y, &sx) || !at(x, ny, &sy)) break;
+                  jx = (sx - here) * (nx > x ? 1.0 : -1.0);
+                  jy = (sy - here) * (ny > y ? 1.0 : -1.0);
+                  have_jacobian = true;
+                }
+                // Signed distance to the dot's edge in pixels: the mm distance
+                // over its rate of change per pixel.
+                double coverage;
+                if (len < 1e-12) {
+                  coverage = 1.0;
+                } else {
+                  const Eigen::Vector3d u = offset / len;
+                  const double rate = std::hypot(jx.dot(u), jy.dot(u));
+                  const double signed_px = rate > 0 ? signed_mm / rate : signed_mm * 1e9;
+                  coverage = std::clamp(0.5 - signed_px, 0.0, 1.0);
+                }
+                keep *= 1.0 - coverage;
+              }
+              albedo = options_.dot_albedo + (albedo - options_.dot_albedo) * keep;
+            }
+          }
+          value = albedo * shade(p, n);
+        }
+      }
+      // Tags: a plate nearer than the face replaces it, blended at its edge.
+      for (size_t k = 0; k < tag_views.size(); ++k) {
+        const TagView& tv = tag_views[k];
+        if (x < tv.x0 || x > tv.x1 || y < tv.y0 || y > tv.y1) continue;
+        const Vec3 n = tv.R.col(2);
+        const double n_t = n.dot(tv.t);
+        const TagPattern& pattern = patterns_[tv.index];
+        const double half = pattern.PlateHalfExtent();
+        auto hit = [&](const Vec3& ray, double* s, Vec2* local) {
+          const double denom = n.dot(ray);
+          if (!(denom > 1e-12)) return false;
+          *s = n_t / denom;
+          const Vec3 q = tv.R.transpose() * (*s * ray - tv.t);
+          *local = q.head<2>() / tv.size;
+          return *s > 0;
+        };
+        double s_centre;
+        Vec2 local_centre;
+        if (!hit(d, &s_centre, &local_centre) || s_centre >= dist) continue;
+        if (std::abs(local_centre.x()) > half + 0.1 || std::abs(local_centre.y()) > half + 0.1) {
+          continue;
+        }
+        // 4 x 4 supersamples, rays interpolated between neighbouring pixels.
+        const int nx = x + 1 < width ? x + 1 : x - 1;
+        const int ny = y + 1 < height ? y + 1 : y - 1;
+        const Vec3 dx = (rays[y * width + nx].cast<double>() - d) * (nx > x ? 1.0 : -1.0);
+        const Vec3 dy = (rays[ny * width + x].cast<double>() - d) * (ny > y ? 1.0 : -1.0);
+        double sum = 0;
+        int on_plate = 0;
+        for (int j = 0; j < 4; ++j) {
+          for (int i = 0; i < 4; ++i) {
+            const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
+            double s;
+            Vec2 local;
+            if (!hit(ray, &s, &local)) continue;
+            const double white = pattern.Sample(local.x(), local.y());
+            if (white < 0) continue;
+            ++on_plate;
+            sum += white;
+          }
+        }
+        if (on_plate == 0) continue;
+        const double reflectance =
+            options_.tag_black + (options_.tag_white - options_.tag_black) * sum / on_plate;
+        const double tag_value = reflectance * shade(s_centre * d, -n);
+        const double coverage = on_plate / 16.0;
+        value = coverage * tag_value + (1 - coverage) * value;
+        if (std::abs(local_centre.x()) <= half && std::abs(local_centre.y()) <= half) {
+          dist = s_centre;
+          seen = kTagSurface - tv.index;
+        }
+      }
+      out_row[x] = static_cast<float>(value);
+      if (depth_row) depth_row[x] = static_cast<float>(dist);
+      if (surface_row) surface_row[x] = seen;
+    }
+  });
+}
+
+ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& samples,
+                                   uint64_t noise_key, bool paint_dots) const {
+  HMC_CHECK(camera >= 0 && camera < NumCameras() && !samples.empty());
+  const FisheyeCamera& cam = rig_.cameras[camera].camera;
+  ViewRender out;
+  out.radiance = cv::Mat::zeros(cam.height, cam.width, CV_32F);
+  out.depth = cv::Mat(cam.height, cam.width, CV_32F);
+  out.surface = cv::Mat(cam.height, cam.width, CV_32S);
+  const size_t middle = samples.size() / 2;
+  cv::Mat one(cam.height, cam.width, CV_32F);
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const bool main = i == middle;
+    ShadeInto(camera, samples[i], paint_dots, samples.size() == 1 ? &out.radiance : &one,
+              main ? &out.depth : nullptr, main ? &out.surface : nullptr,
+              main ? &out.stats : nullptr);
+    if (samples.size() > 1) out.radiance += one / static_cast<double>(samples.size());
+  }
+  cv::Mat signal = out.radiance.clone();
+  if (options_.defocus_px > 0) {
+    cv::GaussianBlur(signal, signal, cv::Size(0, 0), options_.defocus_px);
+  }
+  if (options_.vignetting > 0) signal = signal.mul(vignette_[camera]);
+  out.image = cv::Mat(cam.height, cam.width, CV_8U);
+  const double read = options_.read_noise, shot = options_.shot_noise;
+  const std::vector<float>& normals = NormalTable();
+  ParallelFor(0, cam.height, [&](int64_t y) {
+    const float* in = signal.ptr<float>(static_cast<int>(y));
+    uint8_t* row = out.image.ptr<uint8_t>(static_cast<int>(y));
+    for (int x = 0; x < cam.width; ++x) {
+      double level = 255.0 * in[x];
+      if (read > 0 || shot > 0) {
+        // Per-pixel hashed draw: the same noise whatever the thread count.
+        const uint64_t h =
+            Mix(noise_key * 0xD1B54A32D192ED03ULL + static_cast<uint64_t>(y) * cam.width + x);
+        level += std::sqrt(read * read + shot * std::max(level, 0.0)) *
+                 normals[h >> (64 - kNormalTableBits)];
+      }
+      row[x] = static_cast<uint8_t>(std::clamp(level, 0.0, 255.0) + 0.5);
+    }
+  });
+  return out;
+}
+
+std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState& state,
+                                                   const ViewRender& view) const {
+  const HelmetCamera& hc = rig_.cameras[camera];
+  const FisheyeCamera& cam = hc.camera;
+  const Rigid3 cam_from_head = hc.cam_from_helmet * state.head_from_helmet.inverse();
+  const MatX3d& X_head = *state.X_head;
+  std::vector<DotTruth> out(markers_.size());
+  for (size_t m = 0; m < markers_.size(); ++m) {
+    const SurfacePoint& sp = markers_[m].point;
+    DotTruth& dot = out[m];
+    if (sp.face < 0 || sp.face >= F_.rows()) continue;
+    Vec3 tri[3];
+    for (int i = 0; i < 3; ++i) tri[i] = cam_from_head * Vec3(X_head.row(F_(sp.face, i)));
+    dot.in_cam = cam_from_head * EvaluateSurfacePoint(sp, F_, X_head);
+    dot.projects = cam.Project(dot.in_cam, &dot.pixel) && cam.IsInImage(dot.pixel);
+    const Vec3 n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    dot.facing = n.dot(-dot.in_cam) > 0;
+    if (!dot.projects || !dot.facing) continue;
+    const int px = std::clamp(static_cast<int>(std::lround(dot.pixel.x())), 0, cam.width - 1);
+    const int py = std::clamp(static_cast<int>(std::lround(dot.pixel.y())), 0, cam.height - 1);
+    const int seen = view.surface.at<int32_t>(py, px);
+    const double range = dot.in_cam.norm();
+    const Vec3 ray = dot.in_cam / range;
+    double occluder = std::numeric_limits<double>::infinity();
+    bool adjacent = false;  // the seen triangle shares a corner with the dot's
+    for (int i = 0; seen >= 0 && i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) adjacent |= F_(seen, i) == F_(sp.face, j);
+    }
+    if (adjacent) {
+      // The dot's own surface patch: a neighbouring triangle cannot hide it
+      // (its extended plane may pass in front on a crease, so do not test).
+      occluder = range;
+    } else if (seen >= 0) {
+      // The triangle seen at the pixel, intersected with the dot's own ray.
+      Vec3 p[3];
+      for (int i = 0; i < 3; ++i) p[i] = cam_from_head * Vec3(X_head.row(F_(seen, i)));
+      double s;
+      Vec3 b;
+      if (IntersectPlane(ray, p[0], p[1], p[2], &s, &b) && b.minCoeff() > -0.25) {
+        occluder = s;
+      } else {
+        occluder = view.depth.at<float>(py, px) + 2.0;  // the pixel's depth, loosely
+      }
+    } else if (seen <= kTagSurface) {
+      occluder = view.depth.at<float>(py, px);
+    } else {
+      occluder = 0;  // nothing at the pixel centre: the dot is on the silhouette
+    }
+    dot.visible = occluder >= range - kOcclusionToleranceMm;
+  }
+  return out;
+}
+
+std::vector<std::array<Vec2, 4>> FootageRenderer::ProjectTagCorners(int camera) const {
+  const HelmetCamera& hc = rig_.cameras[camera];
+  std::vector<std::array<Vec2, 4>> out;
+  for (const HelmetTag& tag : rig_.tags) {
+    std::array<Vec2, 4> corners;
+    const std::vector<Vec3> c = tag.CornersInHelmet();
+    for (int i = 0; i < 4; ++i) {
+      if (!hc.camera.Project(hc.cam_from_helmet * c[i], &corners[i])) {
+        corners[i].setConstant(std::numeric_limits<double>::quiet_NaN());
+      }
+    }
+    out.push_back(corners);
+  }
+  return out;
+}
+
+}  // namespace hmc

@@ -1,0 +1,179 @@
+// The software renderer of synthetic helmet-camera footage (`hmc synth
+// shot`): what one fisheye camera of the helmet rig (synth/helmet_rig.h)
+// records of the painted face and the helmet tags. docs/footage.md explains
+// the method and what is exact.
+//
+// 1. Visibility: the face's triangles are projected through the
+//    Kannala-Brandt model and subdivided in screen space until every edge's
+//    chord is within `max_edge_error_px` of the projected (curved) edge
+//    (midpoint sagitta; the split decision depends on the edge alone, so
+//    neighbours split shared edges alike and no T-junction cracks appear),
+//    then rasterized with core/raster.h's z-buffer.
+// 2. Shading, per pixel: the pixel's exact ray (precomputed bearings) is
+//    intersected with the visible (flat) triangle of the mesh, so the
+//    surface point, its UV and depth are exact, not interpolated through
+//    the projection. The albedo is the face-plane (UV) texture: a smooth skin
+//    variation plus the painted dots, discs in UV space (they stretch with
+//    the skin), anti-aliased by their signed distance in pixels. Lambert
+//    shading by one light beside each camera (inverse-square falloff).
+//    Tags: planar plates, ray-intersected exactly and supersampled.
+// 3. Camera: optional motion blur (sub-frame samples), defocus (Gaussian),
+//    vignetting, sensor noise (read + shot noise, seeded per pixel), 8-bit.
+// Parallel over rows via core/parallel.h; deterministic whatever the thread
+// count.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/actor.h"
+#include "core/mesh.h"
+#include "core/options.h"
+#include "synth/helmet_rig.h"
+#include "synth/tag_render.h"
+
+namespace hmc {
+
+struct FootageRenderOptions {
+  double dot_radius = 1.2;          // painted dot radius in the face plane (UV, mm)
+  double dot_albedo = 0.07;         // reflectance of the dot paint
+  double skin_albedo = 0.6;         // mean skin reflectance
+  double albedo_variation = 0.1;    // relative amplitude of the skin's albedo variation
+  double tag_white = 0.85;          // reflectance of the tags' white
+  double tag_black = 0.04;          // reflectance of the tags' black
+  double background = 0.015;        // radiance where nothing is hit (helmet interior)
+  double ambient = 0.06;            // ambient light (fraction of full exposure)
+  double light_power = 0.55;        // each head light's irradiance at 170 mm, head-on
+  double light_offset = 22;         // head light offset beside each camera (mm)
+  double vignetting = 0.3;          // darkening at the image corner (0 = off)
+  double read_noise = 1.0;          // std of the sensor read noise (8-bit levels; 0 = off)
+  double shot_noise = 0.05;         // shot-noise variance per level of signal (0 = off)
+  int motion_blur_samples = 1;      // sub-frame samples over the shutter (1 = off)
+  double shutter = 0.5;             // exposure as a fraction of the frame interval
+  double defocus_px = 0;            // Gaussian defocus blur sigma (px; 0 = off)
+  double max_edge_error_px = 0.05;  // fisheye subdivision tolerance (px)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+  // No noise, vignetting, blur or defocus: the clean image of exact tests.
+  void SetClean();
+};
+
+// What the triangle subdivision did for one view.
+struct SubdivisionStats {
+  int64_t input_triangles = 0;   // front-facing triangles projected
+  int64_t split_triangles = 0;   // of which were subdivided
+  int64_t output_triangles = 0;  // triangles rasterized
+  double max_edge_error_px = 0;  // largest midpoint sagitta of a rasterized edge
+};
+
+// Screen-space triangles of the fisheye projection of a mesh.
+struct FisheyeTriangles {
+  MatX3d screen;          // N x 3: x_px, y_px, distance from the camera (mm)
+  MatX3i F;               // T x 3 rows of screen
+  std::vector<int> face;  // T: the mesh triangle each came from
+  SubdivisionStats stats;
+};
+
+// Projects the triangles of (X_cam, F) that face the camera and subdivides
+// them until the chord of every edge is within `max_edge_error_px` of the
+// projected edge's midpoint. X_cam: V x 3 in the camera frame (mm).
+FisheyeTriangles SubdivideForFisheye(const FisheyeCamera& camera,
+                                     const MatX3d& X_cam, const MatX3i& F,
+                                     double max_edge_error_px);
+
+// One instant of the scene.
+struct SceneState {
+  const MatX3d* X_head = nullptr;  // V x 3 face vertex positions (head space, mm)
+  Rigid3 head_from_helmet = Rigid3::Identity();
+};
+
+struct ViewRender {
+  cv::Mat radiance;  // CV_32F, linear, 1 = full scale, before noise and quantisation
+  cv::Mat image;     // CV_8U: the recorded frame
+  cv::Mat depth;     // CV_32F distance from the camera centre along each pixel's ray
+                     // (mm), +inf where nothing is hit
+  cv::Mat surface;   // CV_32S per pixel: mesh triangle seen, kTagSurface - tag
+                     // index for a tag, -1 for nothing
+  SubdivisionStats stats;
+};
+constexpr int kTagSurface = -1000;
+
+// Ground truth of one dot in one camera.
+struct DotTruth {
+  Vec2 pixel = Vec2::Zero();  // projection of the marker's surface point
+  Vec3 in_cam = Vec3::Zero();
+  bool projects = false;      // in front of the lens and inside the image
+  bool facing = false;        // its triangle faces the camera
+  bool visible = false;       // projects, faces and nothing is nearer on its ray
+};
+
+class FootageRenderer {
+ public:
+  // neutral: the actor's neutral mesh (triangles; positions unused);
+  // st: V x 2 face-plane texture coordinates (mm, linear in UV) in which
+  // the dots are round; markers: the painted dots; seed: the albedo texture.
+  FootageRenderer(const TriMesh& neutral, const MatX2d& st,
+                  const std::vector<Marker>& markers, const HelmetRig& rig,
+                  const FootageRenderOptions& options, uint64_t seed);
+
+  const HelmetRig& rig() const { return rig_; }
+  int NumCameras() const { return static_cast<int>(rig_.cameras.size()); }
+
+  // Renders camera `camera` over `samples` (one: no motion blur; several:
+  // averaged over the shutter; depth and surface are those of the middle
+  // sample). noise_key seeds the sensor noise (distinct per frame and
+  // camera). paint_dots = false leaves the dots out (tests compare).
+  ViewRender Render(int camera, const std::vector<SceneState>& samples,
+                    uint64_t noise_key, bool paint_dots = true) const;
+
+  // Each marker's projection and visibility in `camera` for `state`;
+  // `view` (rendered from the same state) supplies the occluder at the
+  // projected pixel: the dot is visible if the ray to it hits nothing
+  // nearer than kOcclusionToleranceMm in front of it.
+  std::vector<DotTruth> ProjectDots(int camera, const SceneState& state,
+                                    const ViewRender& view) const;
+  static constexpr double kOcclusionToleranceMm = 0.3;
+
+  // Each tag's four corners (HelmetTag::CornersInHelmet order) in `camera`;
+  // a corner that does not project is NaN.
+  std::vector<std::array<Vec2, 4>> ProjectTagCorners(int camera) const;
+
+  // The face-plane centre of each marker's dot (mm).
+  const std::vector<Vec2>& dot_centres() const { return dot_st_; }
+
+ private:
+  struct Frame;
+  void ShadeInto(int camera, const SceneState& state, bool paint_dots,
+                 cv::Mat* radiance, cv::Mat* depth, cv::Mat* surface,
+                 SubdivisionStats* stats) const;
+  double Albedo(const Vec2& st) const;
+
+  HelmetRig rig_;
+  FootageRenderOptions options_;
+  MatX3i F_;
+  MatX2d st_;
+  std::vector<std::vector<int>> vertex_faces_;
+  std::vector<Marker> markers_;
+  std::vector<Vec2> dot_st_;
+
+  // Dots by face-plane grid cell (cell_ mm) for the per-pixel lookup.
+  double cell_ = 4.0;
+  Vec2 grid_origin_ = Vec2::Zero();
+  int grid_w_ = 0, grid_h_ = 0;
+  std::vector<std::vector<int>> dot_grid_;
+  // Skin albedo variation texture over the face plane (texel_ mm).
+  cv::Mat albedo_texture_;  // CV_32F, relative variation
+  double texel_ = 0.5;
+  Vec2 texture_origin_ = Vec2::Zero();
+  std::vector<TagPattern> patterns_;
+  std::vector<std::vector<Eigen::Vector3f>> bearings_;  // per camera: W*H unit rays
+  std::vector<cv::Mat> vignette_;                         // per camera: CV_32F factor
+};
+
+}  // namespace hmc

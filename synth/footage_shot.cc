@@ -1,0 +1,307 @@
+#include "synth/footage_shot.h"
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <set>
+#include <cmath>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/frame_data.h"
+#include "core/image_io.h"
+#include "core/logging.h"
+#include "core/mesh_sequence.h"
+#include "core/obj_io.h"
+#include "core/parallel.h"
+
+namespace hmc {
+
+void SynthShotOptions::Register(OptionFields* fields) {
+  performance.Register(fields);
+  fields->Add("video", &video, "ffv1 (lossless .mkv per camera) | png (a folder per camera)");
+  fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)");
+  fields->Add("contact_dots", &contact_dots, "overlay the ground-truth dots on the contact sheet");
+  fields->Add("contact_scale", &contact_scale, "contact sheet image scale");
+  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  rig.Register(fields);
+  render.Register(fields);
+}
+
+bool SynthShotOptions::Check() const {
+  bool ok = performance.Check() && rig.Check() && render.Check();
+  if (video != "ffv1" && video != "png") {
+    spdlog::error("synth shot options: video must be ffv1 or png, got '{}'", video);
+    ok = false;
+  }
+  if (contact_frames < 0 || contact_frames > 32) {
+    spdlog::error("synth shot options: contact_frames must be in [0, 32]");
+    ok = false;
+  }
+  if (!(contact_scale > 0.05 && contact_scale <= 1)) {
+    spdlog::error("synth shot options: contact_scale must be in (0.05, 1]");
+    ok = false;
+  }
+  return ok;
+}
+
+std::string SynthShotSummary::BriefReport() const {
+  return fmt::format(
+      "{} frames x {} cameras rendered in {:.1f} s ({:.1f} stereo frames/s; {:.1f} s with "
+      "writing); max edge error {:.4f} px, {:.2f}% of triangles split; {:.1f} visible "
+      "dots per view",
+      frames, cameras, render_seconds, render_seconds > 0 ? frames / render_seconds : 0.0,
+      total_seconds, max_edge_error_px, 100 * split_fraction, mean_visible_dots);
+}
+
+namespace {
+
+// Frontmost z of the neutral near the face's midline at height y (mm).
+double FaceFrontZ(const TriMesh& neutral, double y) {
+  double best = -std::numeric_limits<double>::infinity();
+  for (int v = 0; v < neutral.NumVertices(); ++v) {
+    if (std::abs(neutral.V(v, 1) - y) < 12 && std::abs(neutral.V(v, 0)) < 25) {
+      best = std::max(best, neutral.V(v, 2));
+    }
+  }
+  if (!std::isfinite(best)) best = neutral.V.col(2).maxCoeff();
+  return best;
+}
+
+std::string Rigid3Row(const Rigid3& t) {
+  const Eigen::Matrix<double, 3, 4> m = t.matrix().topRows<3>();
+  std::string out;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out += fmt::format("{:.12g},", m(r, c));
+  }
+  return out + fmt::format("{:.9g},{:.9g},{:.9g}", m(0, 3), m(1, 3), m(2, 3));
+}
+
+// Writes one camera's frames: a lossless FFV1 .mkv (written under a
+// temporary name and renamed when complete) or a PNG folder.
+class FrameSink {
+ public:
+  FrameSink(const std::filesystem::path& out_dir, const std::string& name,
+            const std::string& kind, double fps, cv::Size size)
+      : kind_(kind) {
+    if (kind == "png") {
+      dir_ = out_dir / name;
+      EnsureDirectory(dir_);
+      return;
+    }
+    final_ = out_dir / (name + ".mkv");
+    temp_ = out_dir / ("." + name + ".partial.mkv");
+    writer_.open(temp_.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('F', 'F', 'V', '1'),
+                 fps, size, false);
+    if (!writer_.isOpened()) {
+      ThrowInputError(final_, 0, "cannot open an FFV1 video writer (OpenCV FFmpeg backend)");
+    }
+  }
+  void Write(int frame, const cv::Mat& image) {
+    if (kind_ == "png") {
+      WritePng(dir_ / fmt::format("frame_{:06d}.png", frame), image);
+    } else {
+      writer_.write(image);
+    }
+  }
+  void Finish() {
+    if (kind_ == "png") return;
+    writer_.release();
+    std::error_code error;
+    std::filesystem::rename(temp_, final_, error);
+    if (error) ThrowInputError(final_, 0, "cannot rename the finished video: {}", error.message());
+  }
+
+ private:
+  std::string kind_;
+  std::filesystem::path dir_, final_, temp_;
+  cv::VideoWriter writer_;
+};
+
+cv::Mat ContactPanel(const cv::Mat& image, const std::vector<DotTruth>& dots, bool overlay,
+                     double scale, const std::string& label) {
+  cv::Mat small, bgr;
+  cv::resize(image, small, cv::Size(), scale, scale, cv::INTER_AREA);
+  cv::cvtColor(small, bgr, cv::COLOR_GRAY2BGR);
+  if (overlay) {
+    for (const DotTruth& dot : dots) {
+      if (!dot.projects || !dot.facing) continue;
+      const cv::Point2d p((dot.pixel.x() + 0.5) * scale - 0.5, (dot.pixel.y() + 0.5) * scale - 0.5);
+      const int shift = 4;
+      const cv::Point centre(static_cast<int>(std::lround(p.x * (1 << shift))),
+                             static_cast<int>(std::lround(p.y * (1 << shift))));
+      cv::circle(bgr, centre, 3 << shift,
+                 dot.visible ? cv::Scalar(60, 220, 60) : cv::Scalar(40, 40, 230), 1,
+                 cv::LINE_AA, shift);
+    }
+  }
+  cv::putText(bgr, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  return bgr;
+}
+
+}  // namespace
+
+HelmetRig MakeShotRig(const FaceModel& model, const HelmetRigOptions& options) {
+  return MakeHelmetRig(options, FaceFrontZ(model.neutral(), options.upper_camera_y),
+                       FaceFrontZ(model.neutral(), options.lower_camera_y));
+}
+
+SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
+                              const SynthShotOptions& options,
+                              const std::filesystem::path& out_dir) {
+  if (!options.Check()) throw InputError("invalid synth shot options (see the message above)");
+  const auto start = std::chrono::steady_clock::now();
+  ThreadLimit thread_limit(options.threads);
+  EnsureDirectory(out_dir);
+  const PerformanceOptions& perf = options.performance;
+  const HelmetRig rig = MakeShotRig(model, options.rig);
+  const FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig,
+                                 options.render, static_cast<uint64_t>(perf.seed));
+  const ShotPerformance performance = MakePerformance(model, perf);
+  const int num_frames = perf.frames;
+  const int num_cameras = renderer.NumCameras();
+  WriteCalibration(out_dir / "calibration.yaml", rig);
+
+  std::vector<FrameSink> sinks;
+  sinks.reserve(num_cameras);
+  for (const HelmetCamera& hc : rig.cameras) {
+    sinks.emplace_back(out_dir, hc.name, options.video, perf.fps,
+                       cv::Size(hc.camera.width, hc.camera.height));
+  }
+  std::set<int> contact;
+  for (int i = 0; i < options.contact_frames; ++i) {
+    contact.insert(static_cast<int>((i + 0.5) * num_frames / options.contact_frames));
+  }
+  std::vector<cv::Mat> contact_rows;
+
+  MeshSequence truth;
+  truth.start_frame = 1;
+  truth.fps = perf.fps;
+  std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
+  std::vector<JawFrame> jaw(num_frames);
+  std::string dots_csv = "frame,camera,marker,x,y,visible\n";
+  std::string pose_csv =
+      "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
+  SynthShotSummary summary;
+  summary.frames = num_frames;
+  summary.cameras = num_cameras;
+  int64_t input_triangles = 0, split_triangles = 0, visible = 0;
+  const MatX3i& F = model.neutral().F;
+  const int blur = options.render.motion_blur_samples;
+  Progress progress("synth shot", num_frames);
+  for (int f = 0; f < num_frames; ++f) {
+    const int frame = truth.start_frame + f;
+    const Eigen::VectorXd& a = performance.activations[f];
+    truth.frames.push_back(model.Evaluate(a));
+    const MatX3d& X = truth.frames.back();
+    const Rigid3& head_from_helmet = performance.head_from_helmet[f];
+    const SceneState state{&X, head_from_helmet};
+    // Motion blur: sub-frame states across the shutter, centred on the frame.
+    std::vector<MatX3d> blur_positions;
+    std::vector<SceneState> samples;
+    if (blur > 1) {
+      blur_positions.reserve(blur);
+      for (int j = 0; j < blur; ++j) {
+        const double tau = (j / (blur - 1.0) - 0.5) * options.render.shutter;  // frames
+        const int g = std::clamp(tau < 0 ? f - 1 : f + 1, 0, num_frames - 1);
+        const double w = std::abs(tau);
+        const Eigen::VectorXd a_tau = (1 - w) * a + w * performance.activations[g];
+        blur_positions.push_back(model.Evaluate(a_tau));
+        samples.push_back({&blur_positions.back(), HeadFromHelmetAt(perf, (f + tau) / perf.fps)});
+      }
+    } else {
+      samples.push_back(state);
+    }
+    jaw[f] = {frame, model.JawPoseOf(a)};
+    bundles_head[f].frame = frame;
+    bundles_helmet[f].frame = frame;
+    const Rigid3 helmet_from_head = head_from_helmet.inverse();
+    for (const Marker& marker : actor.markers) {
+      const Vec3 p = EvaluateSurfacePoint(marker.point, F, X);
+      bundles_head[f].bundles[marker.name] = p;
+      bundles_helmet[f].bundles[marker.name] = helmet_from_head * p;
+    }
+    pose_csv += fmt::format("{},{}\n", frame, Rigid3Row(head_from_helmet));
+    std::vector<cv::Mat> panels;
+    for (int c = 0; c < num_cameras; ++c) {
+      const auto render_start = std::chrono::steady_clock::now();
+      const uint64_t key = (static_cast<uint64_t>(perf.seed) << 32) ^
+                           (static_cast<uint64_t>(frame) << 4) ^ static_cast<uint64_t>(c);
+      const ViewRender view = renderer.Render(c, samples, key);
+      const std::vector<DotTruth> dots = renderer.ProjectDots(c, state, view);
+      summary.render_seconds +=
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
+      summary.max_edge_error_px = std::max(summary.max_edge_error_px, view.stats.max_edge_error_px);
+      input_triangles += view.stats.input_triangles;
+      split_triangles += view.stats.split_triangles;
+      sinks[c].Write(frame, view.image);
+      for (size_t m = 0; m < dots.size(); ++m) {
+        if (!dots[m].projects) continue;
+        visible += dots[m].visible;
+        dots_csv += fmt::format("{},{},{},{:.6f},{:.6f},{}\n", frame, rig.cameras[c].name,
+                                actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(),
+                                dots[m].visible ? 1 : 0);
+      }
+      if (contact.count(f)) {
+        panels.push_back(ContactPanel(view.image, dots, options.contact_dots,
+                                      options.contact_scale,
+                                      fmt::format("frame {} {}", frame, rig.cameras[c].name)));
+      }
+    }
+    if (!panels.empty()) {
+      cv::Mat row;
+      cv::hconcat(panels, row);
+      contact_rows.push_back(row);
+    }
+    progress.Advance();
+  }
+  progress.Finish();
+  for (FrameSink& sink : sinks) sink.Finish();
+
+  // Ground truth.
+  WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
+  WriteFileAtomic(out_dir / "head_from_helmet.csv", pose_csv);
+  WriteBundlesCsv(out_dir / "bundles.csv", bundles_head);
+  WriteBundlesCsv(out_dir / "bundles_helmet.csv", bundles_helmet);
+  WriteJawCsv(out_dir / "jaw.csv", jaw);
+  std::string tags_csv = "camera,tag,corner,x,y\n";
+  for (int c = 0; c < num_cameras; ++c) {
+    const auto corners = renderer.ProjectTagCorners(c);
+    for (size_t t = 0; t < corners.size(); ++t) {
+      for (int i = 0; i < 4; ++i) {
+        tags_csv += fmt::format("{},{},{},{:.6f},{:.6f}\n", rig.cameras[c].name, rig.tags[t].id,
+                                i, corners[t][i].x(), corners[t][i].y());
+      }
+    }
+  }
+  WriteFileAtomic(out_dir / "tags_2d.csv", tags_csv);
+  truth.topology = actor.neutral;
+  WriteMeshSequence(out_dir / "truth.pc2", truth);
+  WriteObj(out_dir / "neutral.obj", actor.neutral);
+  if (!contact_rows.empty()) {
+    cv::Mat sheet;
+    cv::vconcat(contact_rows, sheet);
+    WritePng(out_dir / "contact_sheet.png", sheet);
+  }
+  OptionFields used;
+  SynthShotOptions copy = options;
+  copy.Register(&used);
+  WriteOptionsUsed(used, out_dir / "options_used.yaml");
+
+  const double total_views = static_cast<double>(num_frames) * num_cameras;
+  summary.split_fraction =
+      input_triangles > 0 ? static_cast<double>(split_triangles) / input_triangles : 0.0;
+  summary.mean_visible_dots = visible / std::max(1.0, total_views);
+  summary.total_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace hmc

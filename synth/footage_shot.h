@@ -1,0 +1,54 @@
+// A whole synthetic shot (`hmc synth shot`): the helmet rig around the
+// actor, a performance, both cameras' footage rendered frame by frame, and
+// the exact ground truth, written to a shot folder (docs/formats.md, "Shot
+// folder"; method: docs/footage.md).
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "core/actor.h"
+#include "core/options.h"
+#include "synth/face_model.h"
+#include "synth/footage.h"
+#include "synth/helmet_rig.h"
+#include "synth/performance.h"
+
+namespace hmc {
+
+struct SynthShotOptions {
+  PerformanceOptions performance;  // frames, seed, fps, slip, vibration (top level)
+  std::string video = "ffv1";      // ffv1 (lossless .mkv per camera) | png (a folder per camera)
+  int contact_frames = 4;          // frames on the contact sheet (0 = none)
+  bool contact_dots = true;        // overlay the ground-truth dots on the contact sheet
+  double contact_scale = 0.4;      // contact sheet image scale
+  int threads = 0;                 // worker threads (0 = all cores)
+  HelmetRigOptions rig;            // rig.*
+  FootageRenderOptions render;     // render.*
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct SynthShotSummary {
+  int frames = 0;
+  int cameras = 0;
+  double render_seconds = 0;      // rendering only (both cameras, all frames)
+  double total_seconds = 0;       // everything, writing included
+  double max_edge_error_px = 0;   // largest rasterized edge sagitta
+  double split_fraction = 0;      // front-facing triangles that were subdivided
+  double mean_visible_dots = 0;   // per frame and camera
+  std::string BriefReport() const;
+};
+
+// The helmet rig the shot uses for `model`'s face.
+HelmetRig MakeShotRig(const FaceModel& model, const HelmetRigOptions& options);
+
+// Renders the shot of `actor` (the package `model` was checked against) into
+// `out_dir`. Throws InputError if the options are invalid or a file cannot
+// be written.
+SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
+                              const SynthShotOptions& options,
+                              const std::filesystem::path& out_dir);
+
+}  // namespace hmc

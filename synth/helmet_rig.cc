@@ -1,0 +1,233 @@
+#include "synth/helmet_rig.h"
+
+#include <cmath>
+
+#include <opencv2/core/eigen.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/file_util.h"
+
+namespace hmc {
+
+void HelmetRigOptions::Register(OptionFields* fields) {
+  fields->SetGroup("rig");
+  fields->Add("width", &width, "image width (px)");
+  fields->Add("height", &height, "image height (px)");
+  fields->Add("focal_px", &focal_px, "fisheye focal length (px per radian)");
+  fields->Add("k1", &k1, "Kannala-Brandt k1");
+  fields->Add("k2", &k2, "Kannala-Brandt k2");
+  fields->Add("k3", &k3, "Kannala-Brandt k3");
+  fields->Add("k4", &k4, "Kannala-Brandt k4");
+  fields->Add("camera_distance", &camera_distance,
+              "camera centre to the face surface along the axis (mm)");
+  fields->Add("upper_camera_y", &upper_camera_y, "upper camera height (mm, helmet space)");
+  fields->Add("lower_camera_y", &lower_camera_y, "lower camera height (mm, helmet space)");
+  fields->Add("tag_size", &tag_size, "tag edge at the black border (mm)");
+  fields->SetGroup("");
+}
+
+bool HelmetRigOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("rig options: {}", message);
+    ok = false;
+  };
+  if (width < 64 || height < 64 || width > 8192 || height > 8192) {
+    fail("width and height must be in [64, 8192]");
+  }
+  if (!(focal_px > 10 && focal_px < 1e5)) fail("focal_px must be in (10, 1e5)");
+  if (!(camera_distance >= 50 && camera_distance <= 1000)) {
+    fail("camera_distance must be in [50, 1000] mm");
+  }
+  if (!(tag_size > 2 && tag_size < 200)) fail("tag_size must be in (2, 200) mm");
+  if (ok) {
+    const double k[4] = {k1, k2, k3, k4};
+    if (!fisheye_internal::IsMonotonicUpTo(k, M_PI / 2)) {
+      fail("k1..k4 must keep the projection monotonic up to 90 degrees off axis");
+    }
+  }
+  return ok;
+}
+
+std::vector<Vec3> HelmetTag::CornersInHelmet() const {
+  const double h = size / 2;
+  return {helmet_from_tag * Vec3(-h, h, 0), helmet_from_tag * Vec3(h, h, 0),
+          helmet_from_tag * Vec3(h, -h, 0), helmet_from_tag * Vec3(-h, -h, 0)};
+}
+
+namespace {
+
+// cam_from_helmet for a camera at `centre` looking along `forward` with
+// helmet +y as "up" (image rows run down).
+Rigid3 LookAt(const Vec3& centre, const Vec3& forward) {
+  const Vec3 z = forward.normalized();
+  const Vec3 x = z.cross(Vec3::UnitY()).normalized();
+  const Vec3 y = z.cross(x);
+  Mat3 helmet_from_cam_rotation;
+  helmet_from_cam_rotation << x, y, z;
+  Rigid3 helmet_from_cam = Rigid3::Identity();
+  helmet_from_cam.linear() = helmet_from_cam_rotation;
+  helmet_from_cam.translation() = centre;
+  return helmet_from_cam.inverse();
+}
+
+// A tag at `centre` facing `target` (the tag's -z toward it), its columns
+// along helmet +x as far as the facing allows.
+Rigid3 TagPose(const Vec3& centre, const Vec3& target) {
+  const Vec3 z = (centre - target).normalized();
+  const Vec3 x = (Vec3::UnitX() - Vec3::UnitX().dot(z) * z).normalized();
+  const Vec3 y = z.cross(x);
+  Rigid3 pose = Rigid3::Identity();
+  pose.linear() << x, y, z;
+  pose.translation() = centre;
+  return pose;
+}
+
+cv::Mat ToCv(const Rigid3& transform) {
+  cv::Mat out;
+  const Eigen::Matrix4d m = transform.matrix();
+  cv::eigen2cv(m, out);
+  return out;
+}
+
+Rigid3 RigidFromCv(const cv::Mat& m, const std::filesystem::path& path,
+                   const std::string& what) {
+  if (m.rows != 4 || m.cols != 4) {
+    ThrowInputError(path, 0, "{} must be a 4 x 4 matrix", what);
+  }
+  Eigen::Matrix4d e;
+  cv::Mat md;
+  m.convertTo(md, CV_64F);
+  cv::cv2eigen(md, e);
+  Rigid3 out = Rigid3::Identity();
+  out.linear() = e.topLeftCorner<3, 3>();
+  out.translation() = e.topRightCorner<3, 1>();
+  const double orthogonality =
+      (out.linear() * out.linear().transpose() - Mat3::Identity()).norm();
+  if (!(orthogonality < 1e-6) || !(out.linear().determinant() > 0)) {
+    ThrowInputError(path, 0, "{} is not a rigid transform", what);
+  }
+  return out;
+}
+
+}  // namespace
+
+HelmetRig MakeHelmetRig(const HelmetRigOptions& options,
+                        double face_front_z_upper, double face_front_z_lower) {
+  HelmetRig rig;
+  FisheyeCamera camera;
+  camera.width = options.width;
+  camera.height = options.height;
+  camera.fx = options.focal_px;
+  camera.fy = options.focal_px;
+  camera.cx = (options.width - 1) / 2.0 + 3.7;  // a real lens is never centred
+  camera.cy = (options.height - 1) / 2.0 - 2.9;
+  camera.k = {options.k1, options.k2, options.k3, options.k4};
+  // Both cameras sit on one vertical boom at the upper camera's distance.
+  const double boom_z = face_front_z_upper + options.camera_distance;
+  const Vec3 upper(0, options.upper_camera_y, boom_z);
+  const Vec3 lower(0, options.lower_camera_y,
+                   std::max(boom_z, face_front_z_lower + options.camera_distance));
+  // The upper camera looks slightly down at the face's middle, the lower one
+  // up at it (the mouth and chin are its subject).
+  const Vec3 upper_target(0, -25, 0);
+  const Vec3 lower_target(0, -30, 0);
+  HelmetCamera cam0{"cam0", camera, LookAt(upper, upper_target - upper)};
+  HelmetCamera cam1{"cam1", camera, LookAt(lower, lower_target - lower)};
+  // The second camera's lens is a little different, as in any real rig.
+  cam1.camera.fx *= 1.004;
+  cam1.camera.fy *= 1.004;
+  cam1.camera.cx -= 5.1;
+  cam1.camera.cy += 4.3;
+  rig.cameras = {cam0, cam1};
+
+  // Tags on the helmet frame beside the cheeks and on the brow band, facing
+  // the boom so both cameras see them.
+  const Vec3 boom_middle = 0.5 * (upper + lower);
+  const double s = options.tag_size;
+  const std::vector<Vec3> centres = {
+      Vec3(-92, -38, face_front_z_upper - 40), Vec3(92, -38, face_front_z_upper - 40),
+      Vec3(-50, 82, face_front_z_upper - 15), Vec3(50, 82, face_front_z_upper - 15)};
+  for (size_t i = 0; i < centres.size(); ++i) {
+    rig.tags.push_back({static_cast<int>(i), s, TagPose(centres[i], boom_middle)});
+  }
+  return rig;
+}
+
+void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig) {
+  cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  fs.writeComment(
+      "hmc helmet rig: Kannala-Brandt fisheye cameras (OpenCV cv::fisheye K, "
+      "D), cam_from_helmet 4x4 (mm), helmet tags (docs/formats.md)");
+  fs << "units" << "mm";
+  fs << "cameras" << "[";
+  for (const HelmetCamera& c : rig.cameras) {
+    fs << "{" << "name" << c.name << "model" << "kannala_brandt"
+       << "image_width" << c.camera.width << "image_height" << c.camera.height
+       << "K" << cv::Mat(c.camera.K()) << "D" << cv::Mat(c.camera.D())
+       << "cam_from_helmet" << ToCv(c.cam_from_helmet) << "}";
+  }
+  fs << "]";
+  fs << "tag_family" << rig.tag_family;
+  fs << "tags" << "[";
+  for (const HelmetTag& t : rig.tags) {
+    cv::Mat corners(4, 3, CV_64F);
+    const std::vector<Vec3> c = t.CornersInHelmet();
+    for (int i = 0; i < 4; ++i) {
+      for (int j = 0; j < 3; ++j) corners.at<double>(i, j) = c[i][j];
+    }
+    fs << "{" << "id" << t.id << "size" << t.size << "helmet_from_tag"
+       << ToCv(t.helmet_from_tag) << "corners_in_helmet" << corners << "}";
+  }
+  fs << "]";
+  WriteFileAtomic(path, fs.releaseAndGetString());
+}
+
+HelmetRig ReadCalibration(const std::filesystem::path& path) {
+  const std::string text = ReadFile(path);
+  cv::FileStorage fs;
+  try {
+    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  } catch (const cv::Exception& e) {
+    ThrowInputError(path, 0, "not an OpenCV FileStorage file: {}", e.what());
+  }
+  if (!fs.isOpened()) ThrowInputError(path, 0, "cannot parse as FileStorage YAML");
+  HelmetRig rig;
+  const cv::FileNode cameras = fs["cameras"];
+  if (!cameras.isSeq() || cameras.size() == 0) {
+    ThrowInputError(path, 0, "missing 'cameras' sequence");
+  }
+  for (const cv::FileNode& node : cameras) {
+    HelmetCamera c;
+    node["name"] >> c.name;
+    cv::Mat K, D, cam_from_helmet;
+    node["K"] >> K;
+    node["D"] >> D;
+    node["cam_from_helmet"] >> cam_from_helmet;
+    const int width = static_cast<int>(node["image_width"]);
+    const int height = static_cast<int>(node["image_height"]);
+    if (K.empty() || D.empty() || width <= 0 || height <= 0) {
+      ThrowInputError(path, 0, "camera '{}' needs K, D, image_width, image_height",
+                      c.name);
+    }
+    c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(width, height));
+    c.cam_from_helmet =
+        RigidFromCv(cam_from_helmet, path, "camera '" + c.name + "' cam_from_helmet");
+    rig.cameras.push_back(c);
+  }
+  fs["tag_family"] >> rig.tag_family;
+  for (const cv::FileNode& node : fs["tags"]) {
+    HelmetTag t;
+    t.id = static_cast<int>(node["id"]);
+    t.size = static_cast<double>(node["size"]);
+    cv::Mat pose;
+    node["helmet_from_tag"] >> pose;
+    if (!(t.size > 0)) ThrowInputError(path, 0, "tag {} needs a positive size", t.id);
+    t.helmet_from_tag = RigidFromCv(pose, path, "tag helmet_from_tag");
+    rig.tags.push_back(t);
+  }
+  return rig;
+}
+
+}  // namespace hmc

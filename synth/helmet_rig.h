@@ -1,0 +1,77 @@
+// The stereo helmet-mounted camera rig of synthetic footage (`hmc synth
+// shot`): two Kannala-Brandt fisheye cameras stacked vertically on a boom in
+// front of the face (the upper at nose level, the lower below the mouth) and
+// AprilTags (tag36h11) fixed on the helmet frame, all rigid in helmet space.
+//
+// Helmet space is head space at rest (core/types.h: +x actor's left, +y up,
+// +z forward); the head then slips and vibrates inside the helmet
+// (synth/performance.h, head_from_helmet per frame). A camera frame is
+// OpenCV's: +z along the optical axis, +x right, +y down in the image.
+// calibration.yaml (docs/formats.md, "calibration.yaml") stores the rig.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/camera_fisheye.h"
+#include "core/options.h"
+#include "core/types.h"
+
+namespace hmc {
+
+struct HelmetRigOptions {
+  int width = 1280;             // image size (px)
+  int height = 1024;
+  double focal_px = 700;        // fisheye focal length (px per radian)
+  double k1 = -0.012;           // Kannala-Brandt distortion k1..k4
+  double k2 = 0.0035;
+  double k3 = -0.0009;
+  double k4 = 0.0001;
+  double camera_distance = 160;  // camera centre to the face surface along the axis (mm)
+  double upper_camera_y = -18;   // upper camera height in helmet space (mm, nose level)
+  double lower_camera_y = -78;   // lower camera height (mm, below the mouth)
+  double tag_size = 22;          // tag edge at the black border (mm); the white border adds 1/8 per side
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// One helmet tag: a flat square plate with the tag and its white border.
+// Tag frame: origin at the tag centre, +x along the pattern's columns, +y
+// along its rows (down the printed pattern), +z into the plate (the tag is
+// seen from -z).
+struct HelmetTag {
+  int id = 0;              // tag36h11 code index
+  double size = 0;         // edge of the black border square (mm)
+  Rigid3 helmet_from_tag;  // pose of the tag frame in helmet space
+
+  // The four black-border corners in helmet space, in the order the
+  // AprilTag library reports them (tag coordinates (-1, 1), (1, 1), (1, -1),
+  // (-1, -1) in units of size / 2).
+  std::vector<Vec3> CornersInHelmet() const;
+};
+
+struct HelmetCamera {
+  std::string name;        // "cam0" (upper), "cam1" (lower)
+  FisheyeCamera camera;
+  Rigid3 cam_from_helmet;
+};
+
+struct HelmetRig {
+  std::vector<HelmetCamera> cameras;
+  std::vector<HelmetTag> tags;
+  std::string tag_family = "tag36h11";
+};
+
+// The default rig around a face whose frontal surface (head space, at the
+// cameras' heights) is at z = face_front_z_upper / face_front_z_lower (mm).
+HelmetRig MakeHelmetRig(const HelmetRigOptions& options,
+                        double face_front_z_upper, double face_front_z_lower);
+
+// calibration.yaml as OpenCV FileStorage YAML. Read throws InputError naming
+// the file on a missing or malformed entry.
+void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig);
+HelmetRig ReadCalibration(const std::filesystem::path& path);
+
+}  // namespace hmc

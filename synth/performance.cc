@@ -1,0 +1,103 @@
+#include "synth/performance.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <spdlog/spdlog.h>
+
+#include "synth/synth_random.h"
+#include "synth/truth_frames.h"
+
+namespace hmc {
+
+void PerformanceOptions::Register(OptionFields* fields) {
+  fields->Add("frames", &frames, "number of frames");
+  fields->Add("seed", &seed, "random seed of expressions, slip and vibration");
+  fields->Add("fps", &fps, "frame rate (frames per second)");
+  fields->Add("slip_mm", &slip_mm, "largest slip of the head in the helmet (mm)");
+  fields->Add("slip_deg", &slip_deg, "largest slip rotation (deg)");
+  fields->Add("vibration_mm", &vibration_mm, "amplitude of the helmet vibration (mm)");
+  fields->Add("vibration_deg", &vibration_deg, "amplitude of the vibration's rotation (deg)");
+  fields->Add("vibration_hz", &vibration_hz, "main vibration frequency (Hz)");
+}
+
+bool PerformanceOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("performance options: {}", message);
+    ok = false;
+  };
+  if (frames < 1 || frames > 100000) fail("frames must be in [1, 100000]");
+  if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
+  if (!(slip_mm >= 0 && slip_mm <= 30)) fail("slip_mm must be in [0, 30]");
+  if (!(slip_deg >= 0 && slip_deg <= 20)) fail("slip_deg must be in [0, 20]");
+  if (!(vibration_mm >= 0 && vibration_mm <= 5)) fail("vibration_mm must be in [0, 5]");
+  if (!(vibration_deg >= 0 && vibration_deg <= 2)) fail("vibration_deg must be in [0, 2]");
+  if (!(vibration_hz > 0 && vibration_hz <= 500)) fail("vibration_hz must be in (0, 500]");
+  return ok;
+}
+
+namespace {
+
+// A unit vector drawn uniformly on the sphere.
+Vec3 RandomDirection(SynthRandom* rng) {
+  Vec3 d(rng->Normal(), rng->Normal(), rng->Normal());
+  return d.normalized();
+}
+
+}  // namespace
+
+Rigid3 HeadFromHelmetAt(const PerformanceOptions& options, double t_s) {
+  // The draws are redone per call (cheap) so the function is pure.
+  SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 50);
+  const double duration = std::max(options.frames / options.fps, 1e-9);
+  const double u = std::clamp(t_s / duration, -1.0, 2.0);
+  // Slip: a drift that settles (smooth step) plus a slow wobble, each along
+  // its own random direction; |slip| stays below the option's bound.
+  const Vec3 drift_dir = RandomDirection(&rng);
+  const Vec3 wobble_dir = RandomDirection(&rng);
+  const Vec3 rot_drift_dir = RandomDirection(&rng);
+  const Vec3 rot_wobble_dir = RandomDirection(&rng);
+  const double phase = rng.Uniform(0, 2 * M_PI);
+  const double cycles = rng.Uniform(0.6, 1.4);
+  const double s = u * u * (3 - 2 * u);
+  const double wobble = std::sin(2 * M_PI * cycles * u + phase);
+  Vec3 translation = options.slip_mm * (0.7 * s * drift_dir + 0.3 * wobble * wobble_dir);
+  Vec3 rotation_deg = options.slip_deg * (0.7 * s * rot_drift_dir + 0.3 * wobble * rot_wobble_dir);
+  // Vibration: two close frequencies beat like a boom ringing.
+  for (int k = 0; k < 2; ++k) {
+    const double hz = options.vibration_hz * (k == 0 ? 1.0 : 1.73);
+    const double weight = k == 0 ? 0.7 : 0.3;
+    const Vec3 dir_t = RandomDirection(&rng);
+    const Vec3 dir_r = RandomDirection(&rng);
+    const double ph = rng.Uniform(0, 2 * M_PI);
+    const double wave = std::sin(2 * M_PI * hz * t_s + ph);
+    translation += weight * options.vibration_mm * wave * dir_t;
+    rotation_deg += weight * options.vibration_deg * wave * dir_r;
+  }
+  Rigid3 out = Rigid3::Identity();
+  const double angle = rotation_deg.norm() * M_PI / 180;
+  if (angle > 0) {
+    out.linear() = Eigen::AngleAxisd(angle, rotation_deg.normalized()).toRotationMatrix();
+  }
+  out.translation() = translation;
+  return out;
+}
+
+ShotPerformance MakePerformance(const FaceModel& model,
+                                const PerformanceOptions& options) {
+  TruthFramesOptions truth;
+  truth.kind = "performance";
+  truth.frames = options.frames;
+  truth.seed = options.seed;
+  truth.fps = options.fps;
+  ShotPerformance out;
+  out.fps = options.fps;
+  out.activations = TruthActivations(model, {}, truth);
+  for (int f = 0; f < options.frames; ++f) {
+    out.head_from_helmet.push_back(HeadFromHelmetAt(options, f / options.fps));
+  }
+  return out;
+}
+
+}  // namespace hmc

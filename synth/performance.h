@@ -1,0 +1,48 @@
+// What happens in front of the helmet cameras during a synthetic shot: the
+// actor's expression trajectory (the generator's animated performance,
+// synth/truth_frames.h: smooth onsets and holds, overlapping units,
+// speech-like jaw and lip motion, blinks), a slow rigid slip of the head
+// inside the helmet and a small high-frequency vibration of the helmet (the
+// cameras and tags, rigid together) against the head. Both motions are
+// folded into head_from_helmet per frame, so the rig stays one rigid
+// calibration for the whole shot. Deterministic by seed.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/options.h"
+#include "core/types.h"
+#include "synth/face_model.h"
+
+namespace hmc {
+
+struct PerformanceOptions {
+  int frames = 120;             // number of frames
+  int seed = 1;                 // random seed of expressions, slip and vibration
+  double fps = 30;              // frame rate (frames per second)
+  double slip_mm = 2.5;         // largest slip of the head in the helmet (mm)
+  double slip_deg = 1.5;        // largest slip rotation (deg)
+  double vibration_mm = 0.12;   // amplitude of the helmet vibration (mm)
+  double vibration_deg = 0.04;  // amplitude of the vibration's rotation (deg)
+  double vibration_hz = 11;     // main vibration frequency (Hz)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct ShotPerformance {
+  double fps = 30;
+  std::vector<Eigen::VectorXd> activations;  // per frame: K unit activations
+  std::vector<Rigid3> head_from_helmet;      // per frame
+};
+
+ShotPerformance MakePerformance(const FaceModel& model,
+                                const PerformanceOptions& options);
+
+// head_from_helmet at time t_s (seconds from frame 0), the smooth function
+// MakePerformance samples; used for motion blur between frames.
+Rigid3 HeadFromHelmetAt(const PerformanceOptions& options, double t_s);
+
+}  // namespace hmc

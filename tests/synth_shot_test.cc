@@ -1,0 +1,164 @@
+// End to end: `hmc actor synth` (small) then `hmc synth shot` at a small
+// image size: the video is lossless (FFV1 decodes to the PNG frames), the
+// shot is deterministic by seed, and the ground-truth files agree with each
+// other through calibration.yaml.
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "core/file_util.h"
+#include "core/frame_data.h"
+#include "synth/helmet_rig.h"
+
+namespace hmc {
+namespace {
+
+namespace fs = std::filesystem;
+
+int RunHmc(const std::string& arguments, const fs::path& log) {
+  const std::string command = fmt::format("'{}' {} >'{}' 2>&1", HMC_BINARY, arguments, log.string());
+  return std::system(command.c_str());
+}
+
+class SynthShotTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / fmt::format("hmc_synth_shot_test_{}", ::getpid());
+    fs::create_directories(dir_);
+    ASSERT_EQ(RunHmc(fmt::format("actor synth --out '{}' --grid_u 128 --grid_v 100",
+                                 (dir_ / "actor").string()),
+                     dir_ / "actor.log"),
+              0)
+        << ReadFile(dir_ / "actor.log");
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static std::string Shot(const std::string& name, const std::string& extra) {
+    const fs::path out = dir_ / name;
+    const int status =
+        RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames 5 --rig.width 320 "
+                           "--rig.height 256 --rig.focal_px 175 --contact_frames 2 {}",
+                           (dir_ / "actor").string(), out.string(), extra),
+               dir_ / (name + ".log"));
+    EXPECT_EQ(status, 0) << ReadFile(dir_ / (name + ".log"));
+    return out.string();
+  }
+
+  static fs::path dir_;
+};
+fs::path SynthShotTest::dir_;
+
+std::vector<cv::Mat> DecodeVideo(const fs::path& path) {
+  cv::VideoCapture capture(path.string(), cv::CAP_FFMPEG);
+  EXPECT_TRUE(capture.isOpened()) << path;
+  std::vector<cv::Mat> frames;
+  cv::Mat frame;
+  while (capture.read(frame)) {
+    cv::Mat grey;
+    if (frame.channels() == 3) {
+      cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
+    } else {
+      grey = frame.clone();
+    }
+    frames.push_back(grey);
+  }
+  return frames;
+}
+
+TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
+  const fs::path a = Shot("a", "");
+  const fs::path b = Shot("b", "");
+  const fs::path png = Shot("png", "--video png");
+  const fs::path other = Shot("other", "--seed 2");
+  for (const char* file : {"calibration.yaml", "dots_2d.csv", "bundles.csv",
+                           "bundles_helmet.csv", "head_from_helmet.csv", "jaw.csv",
+                           "tags_2d.csv", "truth.pc2", "neutral.obj", "contact_sheet.png"}) {
+    ASSERT_TRUE(fs::exists(a / file)) << file;
+    EXPECT_EQ(ReadFile(a / file), ReadFile(b / file)) << file << " differs between runs";
+  }
+  EXPECT_NE(ReadFile(a / "dots_2d.csv"), ReadFile(other / "dots_2d.csv"));
+  for (const char* cam : {"cam0", "cam1"}) {
+    const std::vector<cv::Mat> video = DecodeVideo(a / (std::string(cam) + ".mkv"));
+    const std::vector<cv::Mat> again = DecodeVideo(b / (std::string(cam) + ".mkv"));
+    ASSERT_EQ(video.size(), 5u);
+    ASSERT_EQ(again.size(), 5u);
+    for (int f = 0; f < 5; ++f) {
+      const cv::Mat written =
+          cv::imread((png / cam / fmt::format("frame_{:06d}.png", f + 1)).string(),
+                     cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(written.type(), CV_8UC1);
+      ASSERT_EQ(video[f].size(), written.size());
+      EXPECT_EQ(cv::norm(video[f], written, cv::NORM_INF), 0) << cam << " frame " << f + 1;
+      EXPECT_EQ(cv::norm(video[f], again[f], cv::NORM_INF), 0);
+      EXPECT_GT(cv::mean(written)[0], 2.0) << "an empty frame";
+    }
+  }
+  // dots_2d.csv is the projection of bundles_helmet.csv through the
+  // calibration, and bundles.csv maps to bundles_helmet.csv by
+  // head_from_helmet.csv.
+  const HelmetRig rig = ReadCalibration(a / "calibration.yaml");
+  ASSERT_EQ(rig.cameras.size(), 2u);
+  ASSERT_EQ(rig.tags.size(), 4u);
+  const std::vector<BundleFrame> helmet = ReadBundlesCsv(a / "bundles_helmet.csv");
+  const std::vector<BundleFrame> head = ReadBundlesCsv(a / "bundles.csv");
+  ASSERT_EQ(helmet.size(), 5u);
+  std::map<int, Rigid3> head_from_helmet;
+  {
+    std::istringstream in(ReadFile(a / "head_from_helmet.csv"));
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::istringstream row(line);
+      std::string cell;
+      std::vector<double> v;
+      while (std::getline(row, cell, ',')) v.push_back(std::stod(cell));
+      ASSERT_EQ(v.size(), 13u);
+      Rigid3 t = Rigid3::Identity();
+      t.linear() << v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9];
+      t.translation() << v[10], v[11], v[12];
+      head_from_helmet[static_cast<int>(v[0])] = t;
+    }
+  }
+  for (size_t f = 0; f < helmet.size(); ++f) {
+    for (const auto& [name, p] : helmet[f].bundles) {
+      const Vec3 in_head = head_from_helmet.at(helmet[f].frame) * p;
+      EXPECT_LT((in_head - head[f].bundles.at(name)).norm(), 1e-5);
+    }
+  }
+  std::istringstream in(ReadFile(a / "dots_2d.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "frame,camera,marker,x,y,visible");
+  int rows = 0, visible = 0;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string frame, cam, marker, x, y, vis;
+    std::getline(row, frame, ',');
+    std::getline(row, cam, ',');
+    std::getline(row, marker, ',');
+    std::getline(row, x, ',');
+    std::getline(row, y, ',');
+    std::getline(row, vis, ',');
+    const int c = cam == "cam0" ? 0 : 1;
+    const Vec3 p = helmet[std::stoi(frame) - 1].bundles.at(marker);
+    Vec2 pixel;
+    ASSERT_TRUE(rig.cameras[c].camera.Project(rig.cameras[c].cam_from_helmet * p, &pixel));
+    EXPECT_LT((pixel - Vec2(std::stod(x), std::stod(y))).norm(), 1e-4);
+    ++rows;
+    visible += vis == "1";
+  }
+  EXPECT_GT(rows, 5 * 2 * 100);
+  EXPECT_GT(visible, rows / 2);
+}
+
+}  // namespace
+}  // namespace hmc
