@@ -232,28 +232,18 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
                                         MatX3d* mesh) const {
   const int K = data_.num_bundles;
   FrameSolve f;
-  f.frame = bundles.frame;
-  f.jaw = jaw;
-  f.bundles.resize(K);
-  std::vector<char> observed(K, 0);
+  const std::vector<char> observed =
+      BeginFrame(bundles, jaw, marker_index_, K, &f);
   Eigen::VectorXd d = Eigen::VectorXd::Zero(3 * K);
   int num_observed = 0;
-  for (const auto& [name, p] : bundles.bundles) {
-    const auto it = marker_index_.find(name);
-    if (it == marker_index_.end()) {
-      ++f.unknown_markers;
-      continue;
-    }
-    const int k = it->second;
-    observed[k] = 1;
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
     ++num_observed;
-    f.bundles[k].observed = p;
     f.bundles[k].status = BundleSolve::Status::kInside;
-    d.segment<3>(3 * k) =
-        UnskinBundle(data_, k, jaw, p) - data_.site_neutral.row(k).transpose();
+    d.segment<3>(3 * k) = UnskinBundle(data_, k, jaw, f.bundles[k].observed) -
+                          data_.site_neutral.row(k).transpose();
   }
-  const int needed = std::max(
-      1, static_cast<int>(std::ceil(options_.min_bundle_fraction * K - 1e-9)));
+  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
   if (num_observed < needed) {
     for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
     f.reason = fmt::format("only {} of {} bundles observed (need {})",

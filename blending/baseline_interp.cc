@@ -110,22 +110,14 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
                                     const JawPose& jaw, MatX3d* mesh) const {
   const int K = data_.num_bundles, V = data_.num_vertices;
   FrameSolve f;
-  f.frame = bundles.frame;
-  f.jaw = jaw;
-  f.bundles.resize(K);
+  const std::vector<char> observed =
+      BeginFrame(bundles, jaw, marker_index_, K, &f);
   std::vector<Vec3> disp(K, Vec3::Zero());
-  std::vector<char> observed(K, 0);
-  for (const auto& [name, p] : bundles.bundles) {
-    const auto it = marker_index_.find(name);
-    if (it == marker_index_.end()) {
-      ++f.unknown_markers;
-      continue;
-    }
-    const int k = it->second;
-    observed[k] = 1;
-    f.bundles[k].observed = p;
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
     f.bundles[k].status = BundleSolve::Status::kInside;
-    disp[k] = UnskinBundle(data_, k, jaw, p) - centres_.row(k).transpose();
+    disp[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed) -
+              centres_.row(k).transpose();
   }
   // Bundles sharing a site (within merge_mm on the neutral) give one
   // constraint, their mean displacement; without the merge the system would
@@ -151,8 +143,7 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
   }
   const int n = static_cast<int>(ids.size());
   // The affine term needs four sites that are not coplanar.
-  const int needed = std::max(
-      1, static_cast<int>(std::ceil(options_.min_bundle_fraction * K - 1e-9)));
+  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
   if (num_observed < needed || n < 4) {
     for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
     f.reason = fmt::format(

@@ -159,31 +159,46 @@ void LgiSolver::Assign(int k, const IndexCandidate& candidate, double cost,
   std::sort(out->weights.begin(), out->weights.end());
 }
 
+std::vector<char> BeginFrame(
+    const BundleFrame& bundles, const JawPose& jaw,
+    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
+    FrameSolve* frame) {
+  frame->frame = bundles.frame;
+  frame->jaw = jaw;
+  frame->bundles.assign(num_bundles, BundleSolve());
+  std::vector<char> observed(num_bundles, 0);
+  for (const auto& [name, p] : bundles.bundles) {
+    const auto it = marker_index.find(name);
+    if (it == marker_index.end()) {
+      ++frame->unknown_markers;
+      continue;
+    }
+    observed[it->second] = 1;
+    frame->bundles[it->second].observed = p;
+  }
+  return observed;
+}
+
+int BundlesNeeded(double min_fraction, int num_bundles) {
+  return std::max(
+      1, static_cast<int>(std::ceil(min_fraction * num_bundles - 1e-9)));
+}
+
 FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
                                  const JawPose& jaw,
                                  const FrameSolve* previous) const {
   const int K = data_.num_bundles;
   FrameSolve f;
-  f.frame = bundles.frame;
-  f.jaw = jaw;
-  f.bundles.resize(K);
+  const std::vector<char> observed =
+      BeginFrame(bundles, jaw, marker_index_, K, &f);
   std::vector<Vec3> unskinned(K, Vec3::Zero());
-  std::vector<char> observed(K, 0);
   int num_observed = 0;
-  for (const auto& [name, p] : bundles.bundles) {
-    const auto it = marker_index_.find(name);
-    if (it == marker_index_.end()) {
-      ++f.unknown_markers;
-      continue;
-    }
-    const int k = it->second;
-    observed[k] = 1;
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
     ++num_observed;
-    f.bundles[k].observed = p;
-    unskinned[k] = UnskinBundle(data_, k, jaw, p);
+    unskinned[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed);
   }
-  const int needed = std::max(
-      1, static_cast<int>(std::ceil(options_.min_bundle_fraction * K - 1e-9)));
+  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
   if (num_observed < needed) {
     f.ok = false;
     f.reason = fmt::format("only {} of {} bundles observed (need {})",

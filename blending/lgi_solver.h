@@ -76,6 +76,18 @@ struct FrameSolve {
   int unknown_markers = 0;           // names not in the actor (ignored)
 };
 
+// How every solver (lgi and the baselines) starts a frame: a FrameSolve
+// with one BundleSolve per marker, the observed position of each bundle
+// named in `bundles` (marker_index: name -> marker), unknown names counted.
+// Returns K flags: which markers were observed.
+std::vector<char> BeginFrame(
+    const BundleFrame& bundles, const JawPose& jaw,
+    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
+    FrameSolve* frame);
+
+// Fewest observed bundles a frame needs: ceil(min_fraction * K), at least 1.
+int BundlesNeeded(double min_fraction, int num_bundles);
+
 struct SolveSummary {
   int frames = 0;
   int bad_frames = 0;
