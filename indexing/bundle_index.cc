@@ -309,20 +309,7 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   // tetrahedron covers them, by distance).
   items_of(c[0], c[1], c[2], [&](uint32_t s) {
     IndexCandidate cand;
-    if (s < num_tets_) {
-      if (!TetContains(Corners(s), p, options.inside_tolerance,
-                       &cand.weights)) {
-        return;
-      }
-    } else {
-      const ClosestPoint cp =
-          ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
-      if (cp.distance > options.on_data_mm) return;
-      cand.weights = cp.weights;
-    }
-    cand.simplex = static_cast<int>(s);
-    cand.point = p;
-    result.candidates.push_back(cand);
+    if (Contains(s, p, options, &cand)) result.candidates.push_back(cand);
   });
   if (!result.candidates.empty()) {
     result.inside = true;
@@ -386,25 +373,31 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   return result;
 }
 
+bool BundleIndex::Contains(int64_t s, const Vec3& p,
+                           const IndexOptions& options,
+                           IndexCandidate* candidate) const {
+  if (s < num_tets_) {
+    if (!TetContains(Corners(s), p, options.inside_tolerance,
+                     &candidate->weights)) {
+      return false;
+    }
+  } else {
+    const ClosestPoint cp =
+        ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+    if (cp.distance > options.on_data_mm) return false;
+    candidate->weights = cp.weights;
+  }
+  candidate->simplex = static_cast<int>(s);
+  candidate->point = p;
+  return true;
+}
+
 IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
                                         const IndexOptions& options) const {
   IndexQuery result;
   for (int64_t s = 0; s < static_cast<int64_t>(simplices_.size()); ++s) {
     IndexCandidate cand;
-    if (s < num_tets_) {
-      if (!TetContains(Corners(s), p, options.inside_tolerance,
-                       &cand.weights)) {
-        continue;
-      }
-    } else {
-      const ClosestPoint cp =
-          ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
-      if (cp.distance > options.on_data_mm) continue;
-      cand.weights = cp.weights;
-    }
-    cand.simplex = static_cast<int>(s);
-    cand.point = p;
-    result.candidates.push_back(cand);
+    if (Contains(s, p, options, &cand)) result.candidates.push_back(cand);
   }
   if (!result.candidates.empty()) {
     result.inside = true;

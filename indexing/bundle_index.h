@@ -80,6 +80,12 @@ class BundleIndex {
   const std::vector<CloudSimplex>& simplices() const { return simplices_; }
   const BundleIndexStats& stats() const { return stats_; }
   SimplexCorners Corners(int simplex) const;
+  // Whether simplex s holds p (tetrahedra: convex barycentrics within
+  // inside_tolerance; lower-dimensional simplices: within on_data_mm); if
+  // so, fills *candidate. The one containment test of Query and
+  // QueryBruteForce.
+  bool Contains(int64_t s, const Vec3& p, const IndexOptions& options,
+                IndexCandidate* candidate) const;
   // The 0-simplex of point i (every point has one, the last P simplices).
   int PointSimplex(int i) const {
     return static_cast<int>(simplices_.size()) - NumPoints() + i;
