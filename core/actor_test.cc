@@ -17,6 +17,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/temp_dir.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
 
@@ -24,24 +25,6 @@ namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    static int counter = 0;
-    path_ = fs::temp_directory_path() /
-            fmt::format("hmc_actor_test_{}_{}", getpid(), counter++);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 fs::path FixtureDir() {
   const char* source = std::getenv("HMC_SOURCE_DIR");

@@ -12,29 +12,12 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/temp_dir.h"
 
 namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    static int counter = 0;
-    path_ = fs::temp_directory_path() /
-            fmt::format("hmc_obj_io_test_{}_{}", getpid(), counter++);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 // A quad, a pentagon and a triangle as a DCC writes them: normals, groups,
 // materials, smoothing, comments, CRLF line ends, and a UV seam (vertex 2
