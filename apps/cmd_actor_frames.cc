@@ -1,6 +1,9 @@
-// `hmc actor frames --actor DIR --out DIR --kind dataset|combos|performance
-//   [--frames N] [--seed N] [--noise-mm S]`: ground-truth test material from
-// the synthetic actor's generator (DESIGN.md section 6). Writes to --out:
+// `hmc actor frames --actor DIR --out DIR
+//   --kind dataset|combos|performance|heldout|mixed [--frames N] [--seed N]
+//   [--noise-mm S]`: ground-truth test material from the synthetic actor's
+// generator (DESIGN.md section 6). heldout and mixed need an actor made with
+// held-out units (`hmc actor synth --holdout N`). --noise-mm applies to every
+// kind. Writes to --out:
 //   truth.pc2        the true mesh sequence (frames numbered from 1, --fps)
 //   neutral.obj      its topology (the package's neutral)
 //   bundles.csv      every marker's surface point on the truth, + noise
@@ -76,8 +79,26 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
     const Actor actor = LoadActor(*actor_dir);
     const FaceModel model(synth);
     CheckActorMatchesModel(actor, model, kNeutralToleranceMm);
+    const std::filesystem::path synth_file =
+        std::filesystem::path(*actor_dir) / kSynthOptionsFile;
+    const std::vector<int> held = HeldOutUnits(model, synth, synth_file);
+    if (KindNeedsHeldOutUnits(options->kind) && held.empty()) {
+      ThrowInputError(synth_file, 0,
+                      "--kind {} needs held-out units, but this actor holds "
+                      "none out (holdout: 0); make one with `hmc actor synth "
+                      "--holdout N`",
+                      options->kind);
+    }
     const std::vector<DatasetEntry> plan = PlanDataset(model, synth);
-    if (options->kind == "dataset") {
+    // heldout and mixed mean "units the package's dataset lacks": its shapes
+    // must be exactly the plan's, so no shape uses a held-out unit.
+    if (KindNeedsHeldOutUnits(options->kind) && actor.shapes.size() != plan.size()) {
+      ThrowInputError(actor.dir / "actor.yaml", 0,
+                      "the package has {} shapes but synth.yaml's generator "
+                      "makes {}: the package was edited or is stale",
+                      actor.shapes.size(), plan.size());
+    }
+    if (options->kind == "dataset" || KindNeedsHeldOutUnits(options->kind)) {
       for (const DatasetEntry& entry : plan) {
         if (actor.FindShape(entry.name) < 0) {
           ThrowInputError(actor.dir / "actor.yaml", 0,
@@ -117,6 +138,11 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
     OptionFields used;
     options->Register(&used);
     WriteOptionsUsed(used, dir / "options_used.yaml");
+    if (!held.empty()) {
+      spdlog::info("actor frames: {} held-out units: {}", held.size(),
+                   synth.holdout_units.empty() ? "(drawn from the seed)"
+                                               : synth.holdout_units);
+    }
     spdlog::info("actor frames: {} {} frames of {} markers (noise {} mm) -> {}",
                  frames.positions.size(), options->kind, actor.markers.size(),
                  options->noise_mm, dir.string());

@@ -1,7 +1,8 @@
-// `hmc actor synth --out DIR [--seed N] [--config FILE]`: writes the
-// synthetic actor package (DESIGN.md section 6; how it is made:
+// `hmc actor synth --out DIR [--seed N] [--holdout N] [--config FILE]`:
+// writes the synthetic actor package (DESIGN.md section 6; how it is made:
 // docs/synthetic.md). Besides the package files of WriteActor it writes
-//   synth.yaml               the generator options used (with the seed), so
+//   synth.yaml               the generator options used (with the seed and
+//                            the held-out units resolved to their names), so
 //                            `hmc actor frames` can regenerate the model
 //   dataset_activations.csv  shape,<one column per unit>: what built each shape
 #include <memory>
@@ -58,6 +59,8 @@ HMC_COMMAND(ActorSynth, "actor", "synth",
     {
       StageTimer generate("generate");
       const FaceModel model(*options);
+      // synth.yaml records the held-out names, not only their count.
+      *options = ResolveHoldout(model, *options);
       plan = PlanDataset(model, *options);
       actor = SynthesizeActorFromModel(model, *options);
       spdlog::info(
@@ -65,6 +68,10 @@ HMC_COMMAND(ActorSynth, "actor", "synth",
           "units, {} shapes",
           options->seed, actor.NumVertices(), actor.neutral.NumFaces(),
           actor.markers.size(), model.NumUnits(), actor.shapes.size());
+      if (options->holdout > 0) {
+        spdlog::info("actor synth: {} units held out of the dataset: {}",
+                     options->holdout, options->holdout_units);
+      }
       WriteDatasetActivations(dir / "dataset_activations.csv", model, plan);
     }
     {

@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "synth/face_model.h"
 #include "synth/marker_layout.h"
+#include "synth/synth_random.h"
 
 namespace hmc {
 
@@ -27,7 +28,42 @@ void SynthActorOptions::Register(OptionFields* fields) {
   fields->Add("dataset_inbetweens", &dataset_inbetweens,
               "add in-between shapes (50%, some 25/75%)");
   fields->Add("dataset_combos", &dataset_combos, "add the combination shapes");
+  fields->Add("holdout", &holdout,
+              "action units held out of the dataset (drawn from the seed, "
+              "never a jaw unit)");
+  fields->Add("holdout_units", &holdout_units,
+              "comma-separated unit names held out (overrides the seeded "
+              "draw; synth.yaml records the resolved list)");
 }
+
+namespace {
+
+// "a, b,c" -> {"a", "b", "c"}; empty items dropped.
+std::vector<std::string> SplitNames(const std::string& text) {
+  std::vector<std::string> names;
+  std::string current;
+  auto flush = [&] {
+    const size_t begin = current.find_first_not_of(" \t");
+    const size_t end = current.find_last_not_of(" \t");
+    if (begin != std::string::npos) names.push_back(current.substr(begin, end - begin + 1));
+    current.clear();
+  };
+  for (char c : text) {
+    if (c == ',') {
+      flush();
+    } else {
+      current += c;
+    }
+  }
+  flush();
+  return names;
+}
+
+// At most this many units may be held out: enough for hard material, and
+// the dataset keeps most of the face's motion.
+constexpr int kMaxHoldout = 24;
+
+}  // namespace
 
 bool SynthActorOptions::Check() const {
   bool ok = true;
@@ -45,6 +81,24 @@ bool SynthActorOptions::Check() const {
     fail("marker_jitter_mm must be in [0, 3]");
   }
   if (name.empty()) fail("name must not be empty");
+  if (holdout < 0 || holdout > kMaxHoldout) {
+    fail(fmt::format("holdout must be in [0, {}]", kMaxHoldout));
+  }
+  const std::vector<std::string> names = SplitNames(holdout_units);
+  if (!names.empty()) {
+    if (holdout != 0 && holdout != static_cast<int>(names.size())) {
+      fail(fmt::format("holdout is {} but holdout_units names {} units", holdout,
+                       names.size()));
+    }
+    if (static_cast<int>(names.size()) > kMaxHoldout) {
+      fail(fmt::format("holdout_units names more than {} units", kMaxHoldout));
+    }
+    for (size_t i = 0; i < names.size(); ++i) {
+      for (size_t j = 0; j < i; ++j) {
+        if (names[i] == names[j]) fail("holdout_units names '" + names[i] + "' twice");
+      }
+    }
+  }
   return ok;
 }
 
@@ -144,10 +198,89 @@ std::vector<std::string> UnionTags(const FaceModel& model,
 
 }  // namespace
 
+std::vector<int> HeldOutUnits(const FaceModel& model,
+                              const SynthActorOptions& options,
+                              const std::filesystem::path& source) {
+  auto fail = [&](const std::string& message) {
+    if (source.empty()) throw InputError(message);
+    ThrowInputError(source, 0, "{}", message);
+  };
+  std::vector<int> held;
+  const std::vector<std::string> names = SplitNames(options.holdout_units);
+  if (!names.empty()) {
+    if (options.holdout != 0 && options.holdout != static_cast<int>(names.size())) {
+      fail(fmt::format("holdout is {} but holdout_units names {} units",
+                       options.holdout, names.size()));
+    }
+    for (const std::string& name : names) {
+      const int k = model.FindUnit(name);
+      if (k < 0) fail("holdout_units: unknown action unit '" + name + "'");
+      if (std::find(held.begin(), held.end(), k) != held.end()) {
+        fail("holdout_units names '" + name + "' twice");
+      }
+      held.push_back(k);
+    }
+  } else if (options.holdout > 0) {
+    // Jaw units are left in: they are the dataset's only source of jaw
+    // rotation and the jaw drop alone is in a third of the combinations and
+    // in the performance's speech, so a chance draw of one would change the
+    // material far more than any other unit (docs/synthetic.md).
+    std::vector<int> pool;
+    for (int k = 0; k < model.NumUnits(); ++k) {
+      if (!model.units()[k].drives_jaw) pool.push_back(k);
+    }
+    if (options.holdout > static_cast<int>(pool.size()) - 1) {
+      fail(fmt::format("holdout {} leaves no expression unit in the dataset "
+                       "({} units do not drive the jaw)",
+                       options.holdout, pool.size()));
+    }
+    SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 3);
+    for (int i = 0; i < options.holdout; ++i) {
+      const int j = i + rng.Index(static_cast<int>(pool.size()) - i);
+      std::swap(pool[i], pool[j]);
+      held.push_back(pool[i]);
+    }
+  }
+  if (static_cast<int>(held.size()) >= model.NumUnits()) {
+    fail("holdout_units would leave the dataset without any unit");
+  }
+  std::sort(held.begin(), held.end());
+  return held;
+}
+
+SynthActorOptions ResolveHoldout(const FaceModel& model,
+                                 const SynthActorOptions& options) {
+  SynthActorOptions resolved = options;
+  const std::vector<int> held = HeldOutUnits(model, options);
+  resolved.holdout = static_cast<int>(held.size());
+  resolved.holdout_units.clear();
+  for (int k : held) {
+    if (!resolved.holdout_units.empty()) resolved.holdout_units += ',';
+    resolved.holdout_units += model.units()[k].name;
+  }
+  return resolved;
+}
+
+std::vector<int> UnitsNotInDataset(const FaceModel& model,
+                                   const std::vector<DatasetEntry>& plan) {
+  std::vector<int> missing;
+  for (int k = 0; k < model.NumUnits(); ++k) {
+    const bool used = std::any_of(plan.begin(), plan.end(), [&](const DatasetEntry& e) {
+      return e.activations[k] != 0;
+    });
+    if (!used) missing.push_back(k);
+  }
+  return missing;
+}
+
 std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
                                       const SynthActorOptions& options) {
+  const std::vector<int> held = HeldOutUnits(model, options);
   std::vector<DatasetEntry> plan;
   auto add = [&](std::string name, Eigen::VectorXd a) {
+    for (int k : held) {
+      if (a[k] != 0) return;
+    }
     std::vector<std::string> tags = UnionTags(model, a);
     plan.push_back({std::move(name), std::move(a), std::move(tags)});
   };

@@ -27,6 +27,8 @@ struct SynthActorOptions {
   double marker_jitter_mm = 0.8;    // std of the seeded marker placement jitter (mm)
   bool dataset_inbetweens = true;   // add 50% (and some 25/75%) in-between shapes
   bool dataset_combos = true;       // add the combination shapes
+  int holdout = 0;                  // action units held out of the dataset (drawn from the seed, never a jaw unit)
+  std::string holdout_units;        // comma-separated unit names held out (overrides the draw; synth.yaml records the resolved list)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -39,8 +41,35 @@ struct DatasetEntry {
   std::vector<std::string> tags;   // union of the units' region tags
 };
 
+// The held-out action units (indices into model.units(), ascending): test
+// material the dataset never sees (docs/synthetic.md "Held-out units").
+// If options.holdout_units names units, exactly those (jaw units allowed:
+// the harder case, by explicit choice only); else `options.holdout` units
+// drawn from the seed among the units that do not drive the jaw (a partial
+// Fisher-Yates shuffle of the non-jaw units in catalog order, with
+// SynthRandom::Stream(seed, 3)). Throws InputError (naming `source` if
+// given) for an unknown or repeated name, a count that disagrees with
+// `holdout`, or more units than can be held out.
+std::vector<int> HeldOutUnits(const FaceModel& model,
+                              const SynthActorOptions& options,
+                              const std::filesystem::path& source = {});
+
+// The options with the hold-out resolved: holdout_units = the held-out
+// names (comma-separated, catalog order), holdout = their count. What
+// `hmc actor synth` writes to synth.yaml, so the package records which
+// units it lacks even if the drawing rule changes.
+SynthActorOptions ResolveHoldout(const FaceModel& model,
+                                 const SynthActorOptions& options);
+
+// Units that no entry of `plan` activates (ascending). For a plan from
+// PlanDataset these are exactly HeldOutUnits: every other unit has its
+// 100% extreme in the dataset.
+std::vector<int> UnitsNotInDataset(const FaceModel& model,
+                                   const std::vector<DatasetEntry>& plan);
+
 // The dataset: every unit at 100% (and, if enabled, in-betweens and
-// combinations), in a fixed order.
+// combinations), in a fixed order, without every entry that activates a
+// held-out unit (extremes, in-betweens and combinations alike).
 std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
                                       const SynthActorOptions& options);
 

@@ -1,5 +1,6 @@
 #include "synth/synth_actor.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <set>
 
@@ -155,6 +156,155 @@ TEST(SynthActorTest, PackageRoundTripRegeneratesTheModel) {
   fs::remove(dir / kSynthOptionsFile);
   EXPECT_THROW(ReadSynthActorOptions(dir), InputError);
   fs::remove_all(dir);
+}
+
+// The names of `plan`'s entries.
+std::vector<std::string> Names(const std::vector<DatasetEntry>& plan) {
+  std::vector<std::string> names;
+  for (const DatasetEntry& entry : plan) names.push_back(entry.name);
+  return names;
+}
+
+bool UsesAny(const DatasetEntry& entry, const std::vector<int>& units) {
+  for (int k : units) {
+    if (entry.activations[k] != 0) return true;
+  }
+  return false;
+}
+
+TEST(SynthActorTest, HoldoutRemovesExactlyTheShapesUsingHeldOutUnits) {
+  std::set<std::vector<int>> drawn;
+  for (int seed : {1, 2, 3, 9}) {
+    SynthActorOptions options = Small(seed);
+    const FaceModel model(options);
+    EXPECT_TRUE(HeldOutUnits(model, options).empty());
+    const std::vector<DatasetEntry> full = PlanDataset(model, options);
+    EXPECT_TRUE(UnitsNotInDataset(model, full).empty());
+    for (int count : {1, 3, 6}) {
+      options.holdout = count;
+      ASSERT_TRUE(options.Check());
+      const std::vector<int> held = HeldOutUnits(model, options);
+      ASSERT_EQ(static_cast<int>(held.size()), count);
+      EXPECT_TRUE(std::is_sorted(held.begin(), held.end()));
+      EXPECT_EQ(std::set<int>(held.begin(), held.end()).size(), held.size());
+      for (int k : held) EXPECT_FALSE(model.units()[k].drives_jaw) << model.units()[k].name;
+      if (count == 3) drawn.insert(held);
+      // Deterministic by seed.
+      EXPECT_EQ(HeldOutUnits(model, options), held);
+
+      const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+      // Exactly the full plan without the entries that use a held-out unit,
+      // in the same order and with the same activations.
+      std::vector<DatasetEntry> expected;
+      for (const DatasetEntry& entry : full) {
+        if (!UsesAny(entry, held)) expected.push_back(entry);
+      }
+      ASSERT_EQ(Names(plan), Names(expected));
+      for (size_t n = 0; n < plan.size(); ++n) {
+        EXPECT_EQ(plan[n].activations, expected[n].activations);
+        EXPECT_EQ(plan[n].tags, expected[n].tags);
+      }
+      // Every held-out unit removed at least its extreme and in-between.
+      EXPECT_LE(plan.size() + 2 * held.size(), full.size());
+      EXPECT_EQ(UnitsNotInDataset(model, plan), held);
+    }
+  }
+  // Different seeds hold out different units.
+  EXPECT_GT(drawn.size(), 1u);
+}
+
+TEST(SynthActorTest, NamedHoldoutUnitsAndTheirErrors) {
+  SynthActorOptions options = Small(4);
+  const FaceModel model(options);
+  // Named units are taken as given, a jaw unit included.
+  options.holdout_units = " AU26_jaw_drop, AU12_lip_corner_puller_L";
+  ASSERT_TRUE(options.Check());
+  const std::vector<int> held = HeldOutUnits(model, options);
+  ASSERT_EQ(held.size(), 2u);
+  std::set<std::string> names;
+  for (int k : held) names.insert(model.units()[k].name);
+  EXPECT_EQ(names, (std::set<std::string>{"AU26_jaw_drop", "AU12_lip_corner_puller_L"}));
+  const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+  for (const DatasetEntry& entry : plan) EXPECT_FALSE(UsesAny(entry, held)) << entry.name;
+  EXPECT_EQ(UnitsNotInDataset(model, plan), held);
+  // Other jaw units keep the dataset's jaw motion.
+  EXPECT_TRUE(std::any_of(plan.begin(), plan.end(), [&](const DatasetEntry& e) {
+    return model.JawPoseOf(e.activations).open_deg > 10;
+  }));
+
+  // A count that agrees is fine; one that disagrees is refused.
+  options.holdout = 2;
+  EXPECT_TRUE(options.Check());
+  EXPECT_EQ(HeldOutUnits(model, options), held);
+  options.holdout = 3;
+  EXPECT_FALSE(options.Check());
+  EXPECT_THROW(HeldOutUnits(model, options), InputError);
+  options.holdout = 0;
+  options.holdout_units = "AU12_lip_corner_puller_L,AU12_lip_corner_puller_L";
+  EXPECT_FALSE(options.Check());
+  options.holdout_units = "AU99_no_such_unit";
+  try {
+    HeldOutUnits(model, options, "actor/synth.yaml");
+    ADD_FAILURE() << "unknown unit accepted";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("synth.yaml"), std::string::npos);
+    EXPECT_NE(std::string(error.what()).find("AU99_no_such_unit"), std::string::npos);
+  }
+  options = Small(4);
+  options.holdout = -1;
+  EXPECT_FALSE(options.Check());
+  options.holdout = 100;
+  EXPECT_FALSE(options.Check());
+}
+
+TEST(SynthActorTest, ResolvedHoldoutRoundTripsThroughSynthYaml) {
+  namespace fs = std::filesystem;
+  for (int seed : {2, 8}) {
+    SynthActorOptions options = Small(seed);
+    options.holdout = 4;
+    options.dataset_combos = seed % 2 == 0;
+    const FaceModel model(options);
+    const SynthActorOptions resolved = ResolveHoldout(model, options);
+    EXPECT_EQ(resolved.holdout, 4);
+    EXPECT_FALSE(resolved.holdout_units.empty());
+    EXPECT_EQ(HeldOutUnits(model, resolved), HeldOutUnits(model, options));
+    EXPECT_EQ(Names(PlanDataset(model, resolved)), Names(PlanDataset(model, options)));
+
+    const fs::path dir = fs::temp_directory_path() /
+                         fmt::format("hmc_synth_holdout_test_{}_{}", getpid(), seed);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    WriteSynthActorOptions(resolved, dir);
+    const SynthActorOptions read = ReadSynthActorOptions(dir);
+    EXPECT_EQ(read.holdout, resolved.holdout);
+    EXPECT_EQ(read.holdout_units, resolved.holdout_units);
+    // The recorded names win over the seed's draw: another seed's model
+    // (same unit catalog) holds out the same units.
+    SynthActorOptions other = read;
+    other.seed = seed + 100;
+    EXPECT_EQ(HeldOutUnits(FaceModel(other), other), HeldOutUnits(model, options));
+    fs::remove_all(dir);
+  }
+}
+
+TEST(SynthActorTest, HoldoutActorIsAValidPackageOfThePlan) {
+  SynthActorOptions options = Small(6);
+  options.holdout = 5;
+  const FaceModel model(options);
+  const Actor actor = SynthesizeActorFromModel(model, options);
+  EXPECT_NO_THROW(ValidateActor(actor, "synth"));
+  const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+  ASSERT_EQ(actor.shapes.size(), plan.size());
+  for (size_t n = 0; n < plan.size(); ++n) EXPECT_EQ(actor.shapes[n].name, plan[n].name);
+  // Markers and the neutral do not depend on the hold-out.
+  const Actor full = SynthesizeActorFromModel(model, Small(6));
+  EXPECT_EQ(actor.neutral.V, full.neutral.V);
+  ASSERT_EQ(actor.markers.size(), full.markers.size());
+  for (size_t m = 0; m < actor.markers.size(); ++m) {
+    EXPECT_EQ(actor.markers[m].name, full.markers[m].name);
+    EXPECT_EQ(actor.markers[m].point.bary, full.markers[m].point.bary);
+  }
+  EXPECT_LT(actor.shapes.size(), full.shapes.size());
 }
 
 }  // namespace

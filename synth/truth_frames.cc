@@ -14,14 +14,29 @@
 namespace hmc {
 
 void TruthFramesOptions::Register(OptionFields* fields) {
-  fields->Add("kind", &kind, "dataset | combos | performance");
+  fields->Add("kind", &kind, "dataset | combos | performance | heldout | mixed");
   fields->Add("frames", &frames, "number of frames (combos, performance)");
   fields->Add("seed", &seed, "random seed of the activations and the bundle noise");
   fields->Add("noise_mm", &noise_mm, "std of Gaussian noise per bundle coordinate (mm)");
   fields->Add("fps", &fps, "frame rate (frames per second)");
   fields->Add("min_units", &min_units, "combos: fewest units active per frame");
   fields->Add("max_units", &max_units, "combos: most units active per frame");
-  fields->Add("min_activation", &min_activation, "combos: activations drawn in [min, 1]");
+  fields->Add("min_activation", &min_activation,
+              "combos, heldout, mixed: activations drawn in [min, 1]");
+  fields->Add("held_min_units", &held_min_units,
+              "heldout, mixed: fewest held-out units per frame");
+  fields->Add("held_max_units", &held_max_units,
+              "heldout, mixed: most held-out units per frame");
+}
+
+const std::vector<std::string>& TruthFrameKinds() {
+  static const std::vector<std::string> kinds = {"dataset", "combos", "performance",
+                                                 "heldout", "mixed"};
+  return kinds;
+}
+
+bool KindNeedsHeldOutUnits(const std::string& kind) {
+  return kind == "heldout" || kind == "mixed";
 }
 
 bool TruthFramesOptions::Check() const {
@@ -30,41 +45,107 @@ bool TruthFramesOptions::Check() const {
     spdlog::error("actor frames options: {}", message);
     ok = false;
   };
-  if (kind != "dataset" && kind != "combos" && kind != "performance") {
-    fail("kind must be dataset, combos or performance, got '" + kind + "'");
+  const auto& kinds = TruthFrameKinds();
+  if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end()) {
+    fail("kind must be dataset, combos, performance, heldout or mixed, got '" +
+         kind + "'");
   }
   if (frames < 1 || frames > 100000) fail("frames must be in [1, 100000]");
   if (!(noise_mm >= 0 && noise_mm <= 50)) fail("noise_mm must be in [0, 50]");
   if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
   if (min_units < 1 || max_units < min_units) fail("need 1 <= min_units <= max_units");
   if (!(min_activation > 0 && min_activation <= 1)) fail("min_activation must be in (0, 1]");
+  if (held_min_units < 1 || held_max_units < held_min_units) {
+    fail("need 1 <= held_min_units <= held_max_units");
+  }
+  if (kind == "mixed" && max_units < 2) {
+    fail("kind mixed needs max_units >= 2 (a held-out and a dataset unit)");
+  }
   return ok;
 }
 
 namespace {
 
-// Random combinations of min..max distinct units at fresh activations.
+// The units of the dataset (not held out), ascending; all units if none is
+// held out.
+std::vector<int> DatasetUnits(const FaceModel& model, const std::vector<int>& held) {
+  std::vector<int> units;
+  for (int k = 0; k < model.NumUnits(); ++k) {
+    if (std::find(held.begin(), held.end(), k) == held.end()) units.push_back(k);
+  }
+  return units;
+}
+
+// Sets `count` distinct units of `pool` not yet active in `a` to activations
+// drawn in [min_activation, 1]. `count` <= the pool's inactive units.
+void PlaceUnits(const std::vector<int>& pool, int count, double min_activation,
+                SynthRandom* rng, Eigen::VectorXd* a) {
+  for (int placed = 0; placed < count;) {
+    const int k = pool[rng->Index(static_cast<int>(pool.size()))];
+    if ((*a)[k] != 0) continue;
+    (*a)[k] = rng->Uniform(min_activation, 1.0);
+    ++placed;
+  }
+}
+
+// Random combinations of min..max distinct dataset units at fresh
+// activations. With no held-out unit the pool is every unit in order, so
+// the draws are those of the generator before holdout existed.
 std::vector<Eigen::VectorXd> Combos(const FaceModel& model,
                                     const std::vector<DatasetEntry>& plan,
+                                    const std::vector<int>& held,
                                     const TruthFramesOptions& options) {
   SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 10);
-  const int num_units = model.NumUnits();
+  const std::vector<int> pool = DatasetUnits(model, held);
+  const int num_units = static_cast<int>(pool.size());
   const int max_units = std::min(options.max_units, num_units);
   const int min_units = std::min(options.min_units, max_units);
   std::vector<Eigen::VectorXd> out;
   while (static_cast<int>(out.size()) < options.frames) {
     Eigen::VectorXd a = model.ZeroActivations();
     const int count = min_units + rng.Index(max_units - min_units + 1);
-    for (int placed = 0; placed < count;) {
-      const int k = rng.Index(num_units);
-      if (a[k] != 0) continue;
-      a[k] = rng.Uniform(options.min_activation, 1.0);
-      ++placed;
-    }
+    PlaceUnits(pool, count, options.min_activation, &rng, &a);
     const bool in_dataset = std::any_of(plan.begin(), plan.end(), [&](const DatasetEntry& e) {
       return e.activations == a;
     });
     if (!in_dataset) out.push_back(std::move(a));
+  }
+  return out;
+}
+
+// heldout: combinations of held-out units alone. mixed: held-out and dataset
+// units together. No frame can equal a dataset entry: every frame activates a
+// unit that no entry activates.
+std::vector<Eigen::VectorXd> HeldOutCombos(const FaceModel& model,
+                                           const std::vector<int>& held,
+                                           const TruthFramesOptions& options) {
+  const bool mixed = options.kind == "mixed";
+  SynthRandom rng =
+      SynthRandom::Stream(static_cast<uint64_t>(options.seed), mixed ? 14 : 13);
+  const std::vector<int> dataset_units = DatasetUnits(model, held);
+  const int num_held = static_cast<int>(held.size());
+  const int num_dataset = static_cast<int>(dataset_units.size());
+  std::vector<Eigen::VectorXd> out(options.frames);
+  for (Eigen::VectorXd& a : out) {
+    a = model.ZeroActivations();
+    if (!mixed) {
+      const int hi = std::min(options.held_max_units, num_held);
+      const int lo = std::min(options.held_min_units, hi);
+      PlaceUnits(held, lo + rng.Index(hi - lo + 1), options.min_activation, &rng, &a);
+      continue;
+    }
+    // Total 2..: at least one held-out and one dataset unit.
+    const int max_total =
+        std::min(options.max_units,
+                 std::min(options.held_max_units, num_held) + num_dataset);
+    const int min_total = std::min(std::max(options.min_units, 2), max_total);
+    const int total = min_total + rng.Index(max_total - min_total + 1);
+    const int held_hi = std::min({options.held_max_units, num_held, total - 1});
+    const int held_lo = std::max(std::min(options.held_min_units, held_hi),
+                                 total - num_dataset);
+    const int num_held_here = held_lo + rng.Index(held_hi - held_lo + 1);
+    PlaceUnits(held, num_held_here, options.min_activation, &rng, &a);
+    PlaceUnits(dataset_units, total - num_held_here, options.min_activation, &rng, &a);
   }
   return out;
 }
@@ -81,6 +162,7 @@ double Envelope(double t, double start, double attack, double hold,
 // A performance: expression events (onset, hold, release) on random units,
 // stretches of speech-like jaw and lip motion, blinks every few seconds.
 std::vector<Eigen::VectorXd> Performance(const FaceModel& model,
+                                         const std::vector<int>& held,
                                          const TruthFramesOptions& options) {
   SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 11);
   const int num_units = model.NumUnits();
@@ -90,11 +172,15 @@ std::vector<Eigen::VectorXd> Performance(const FaceModel& model,
     double start, attack, hold, release, peak;
   };
   std::vector<Event> events;
-  // About one expression event per second, on non-jaw units.
+  // About one expression event per second, on non-jaw dataset units. (The
+  // speech and blink tracks below keep their fixed units even if one of
+  // them is held out.)
   std::vector<int> expression_units;
   for (int k = 0; k < num_units; ++k) {
-    if (!model.units()[k].drives_jaw) expression_units.push_back(k);
+    const bool is_held = std::find(held.begin(), held.end(), k) != held.end();
+    if (!model.units()[k].drives_jaw && !is_held) expression_units.push_back(k);
   }
+  HMC_CHECK(!expression_units.empty());
   const int num_events = std::max(1, static_cast<int>(std::ceil(duration)));
   for (int e = 0; e < num_events; ++e) {
     Event event;
@@ -168,8 +254,21 @@ std::vector<Eigen::VectorXd> TruthActivations(
     for (const DatasetEntry& entry : plan) out.push_back(entry.activations);
     return out;
   }
-  if (options.kind == "combos") return Combos(model, plan, options);
-  if (options.kind == "performance") return Performance(model, options);
+  // An empty plan says nothing about the dataset: no unit is held out (what
+  // callers that pass {} for combos or performance always got).
+  const std::vector<int> held =
+      plan.empty() ? std::vector<int>() : UnitsNotInDataset(model, plan);
+  if (options.kind == "combos") return Combos(model, plan, held, options);
+  if (options.kind == "performance") return Performance(model, held, options);
+  if (KindNeedsHeldOutUnits(options.kind)) {
+    if (held.empty()) {
+      throw InputError("frames of kind '" + options.kind +
+                       "' need held-out units, but the dataset uses every "
+                       "unit (synth.yaml: holdout 0; make the actor with "
+                       "`hmc actor synth --holdout N`)");
+    }
+    return HeldOutCombos(model, held, options);
+  }
   throw InputError("unknown frames kind '" + options.kind + "'");
 }
 

@@ -1,9 +1,12 @@
 #include "synth/truth_frames.h"
 
+#include <algorithm>
 #include <cmath>
+#include <set>
 
 #include <gtest/gtest.h>
 
+#include "core/error.h"
 #include "synth/marker_layout.h"
 
 namespace hmc {
@@ -16,9 +19,11 @@ struct Fixture {
   std::vector<DatasetEntry> plan;
 };
 
-Fixture Make(int seed) {
+Fixture Make(int seed, int holdout = 0, const std::string& holdout_units = "") {
   Fixture f;
   f.synth.seed = seed;
+  f.synth.holdout = holdout;
+  f.synth.holdout_units = holdout_units;
   f.synth.grid_u = 48;
   f.synth.grid_v = 40;
   f.model = std::make_unique<FaceModel>(f.synth);
@@ -139,6 +144,190 @@ TEST(TruthFramesTest, OptionsCheck) {
   EXPECT_FALSE(options.Check());
   options = TruthFramesOptions();
   options.noise_mm = -0.1;
+  EXPECT_FALSE(options.Check());
+}
+
+// Active units of `a` that are (not) in `units`.
+int CountIn(const Eigen::VectorXd& a, const std::vector<int>& units, bool in) {
+  int count = 0;
+  for (int k = 0; k < a.size(); ++k) {
+    const bool member = std::find(units.begin(), units.end(), k) != units.end();
+    if (a[k] != 0 && member == in) ++count;
+  }
+  return count;
+}
+
+class HoldoutFramesTest : public ::testing::TestWithParam<std::pair<int, int>> {};
+
+TEST_P(HoldoutFramesTest, HeldoutFramesUseOnlyHeldOutUnits) {
+  const auto [seed, holdout] = GetParam();
+  const Fixture f = Make(seed, holdout);
+  const std::vector<int> held = HeldOutUnits(*f.model, f.synth);
+  ASSERT_EQ(static_cast<int>(held.size()), holdout);
+  TruthFramesOptions options;
+  options.kind = "heldout";
+  options.frames = 150;
+  options.seed = seed + 20;
+  const auto frames = TruthActivations(*f.model, f.plan, options);
+  ASSERT_EQ(frames.size(), 150u);
+  std::set<int> sizes;
+  std::set<int> seen;
+  for (const Eigen::VectorXd& a : frames) {
+    EXPECT_EQ(CountIn(a, held, false), 0);
+    const int active = CountIn(a, held, true);
+    EXPECT_GE(active, 1);
+    EXPECT_LE(active, std::min(3, holdout));
+    sizes.insert(active);
+    for (int k = 0; k < a.size(); ++k) {
+      if (a[k] == 0) continue;
+      seen.insert(k);
+      EXPECT_GE(a[k], options.min_activation);
+      EXPECT_LE(a[k], 1.0);
+    }
+  }
+  // 150 draws cover every count and every held-out unit.
+  EXPECT_EQ(static_cast<int>(sizes.size()), std::min(3, holdout));
+  EXPECT_EQ(std::vector<int>(seen.begin(), seen.end()), held);
+}
+
+TEST_P(HoldoutFramesTest, MixedFramesCombineHeldOutAndDatasetUnits) {
+  const auto [seed, holdout] = GetParam();
+  const Fixture f = Make(seed, holdout);
+  const std::vector<int> held = HeldOutUnits(*f.model, f.synth);
+  TruthFramesOptions options;
+  options.kind = "mixed";
+  options.frames = 150;
+  options.seed = seed + 30;
+  const auto frames = TruthActivations(*f.model, f.plan, options);
+  ASSERT_EQ(frames.size(), 150u);
+  for (const Eigen::VectorXd& a : frames) {
+    const int from_held = CountIn(a, held, true);
+    const int from_dataset = CountIn(a, held, false);
+    EXPECT_GE(from_held, 1);
+    EXPECT_LE(from_held, 3);
+    EXPECT_GE(from_dataset, 1);
+    EXPECT_GE(from_held + from_dataset, 2);
+    EXPECT_LE(from_held + from_dataset, 5);
+    EXPECT_GE(a.minCoeff(), 0.0);
+    EXPECT_LE(a.maxCoeff(), 1.0);
+  }
+  // Combos and the performance's expression events stay on dataset units.
+  options.kind = "combos";
+  for (const Eigen::VectorXd& a : TruthActivations(*f.model, f.plan, options)) {
+    EXPECT_EQ(CountIn(a, held, true), 0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SeedsAndCounts, HoldoutFramesTest,
+                         ::testing::Values(std::make_pair(1, 1), std::make_pair(2, 3),
+                                           std::make_pair(3, 5), std::make_pair(8, 8)));
+
+TEST(TruthFramesTest, PerformanceEventsAvoidHeldOutUnits) {
+  // Units the speech and blink tracks do not use, so only the random
+  // expression events could reach them.
+  const Fixture f = Make(3, 0, "AU04_brow_lowerer,AU09_nose_wrinkler,AU14_dimpler,"
+                               "AU01_inner_brow_raiser_L,AU06_cheek_raiser_R");
+  const std::vector<int> held = HeldOutUnits(*f.model, f.synth);
+  ASSERT_EQ(held.size(), 5u);
+  for (int seed : {1, 2, 3}) {
+    TruthFramesOptions options;
+    options.kind = "performance";
+    options.frames = 600;
+    options.seed = seed;
+    for (const Eigen::VectorXd& a : TruthActivations(*f.model, f.plan, options)) {
+      EXPECT_EQ(CountIn(a, held, true), 0);
+    }
+  }
+}
+
+TEST(TruthFramesTest, EmptyPlanHoldsNothingOut) {
+  const Fixture f = Make(5);
+  for (const std::string kind : {"combos", "performance"}) {
+    TruthFramesOptions options;
+    options.kind = kind;
+    options.frames = 60;
+    options.seed = 9;
+    EXPECT_EQ(TruthActivations(*f.model, {}, options),
+              TruthActivations(*f.model, f.plan, options))
+        << kind;
+  }
+  TruthFramesOptions options;
+  options.kind = "heldout";
+  EXPECT_THROW(TruthActivations(*f.model, {}, options), InputError);
+}
+
+TEST(TruthFramesTest, HeldOutKindsNeedHeldOutUnits) {
+  const Fixture f = Make(2);
+  for (const std::string kind : {"heldout", "mixed"}) {
+    TruthFramesOptions options;
+    options.kind = kind;
+    EXPECT_TRUE(options.Check());
+    EXPECT_TRUE(KindNeedsHeldOutUnits(kind));
+    EXPECT_THROW(TruthActivations(*f.model, f.plan, options), InputError);
+    EXPECT_THROW(MakeTruthFrames(*f.model, f.markers, f.plan, options), InputError);
+  }
+  EXPECT_FALSE(KindNeedsHeldOutUnits("combos"));
+}
+
+// Noise applies to every kind: bundles minus the noise-free bundles of the
+// same seed are N(0, noise^2) per coordinate, and the draws do not depend on
+// the level (one seed, two levels: the same draws scaled).
+TEST(TruthFramesTest, NoiseOnEveryKind) {
+  const Fixture f = Make(4, 3);
+  for (const std::string& kind : TruthFrameKinds()) {
+    TruthFramesOptions options;
+    options.kind = kind;
+    options.frames = 20;
+    options.seed = 17;
+    const TruthFrames exact = MakeTruthFrames(*f.model, f.markers, f.plan, options);
+    std::vector<Vec3> draws_at_half;
+    for (double noise : {0.5, 1.0}) {
+      options.noise_mm = noise;
+      const TruthFrames noisy = MakeTruthFrames(*f.model, f.markers, f.plan, options);
+      ASSERT_EQ(noisy.bundles.size(), exact.bundles.size()) << kind;
+      double sum = 0, sum_sq = 0;
+      int n = 0;
+      std::vector<Vec3> draws;
+      for (size_t i = 0; i < exact.bundles.size(); ++i) {
+        EXPECT_EQ(noisy.positions[i], exact.positions[i]);
+        for (const auto& [name, p] : exact.bundles[i].bundles) {
+          const Vec3 d = noisy.bundles[i].bundles.at(name) - p;
+          draws.push_back(d);
+          sum += d.sum();
+          sum_sq += d.squaredNorm();
+          n += 3;
+        }
+      }
+      // Sampling error of a std estimate from n normal draws: sigma /
+      // sqrt(2 n); of the mean: sigma / sqrt(n). Five of them.
+      const double std_measured = std::sqrt(sum_sq / n);
+      EXPECT_NEAR(std_measured, noise, 5 * noise / std::sqrt(2.0 * n)) << kind;
+      EXPECT_NEAR(sum / n, 0.0, 5 * noise / std::sqrt(double(n))) << kind;
+      if (noise == 0.5) {
+        draws_at_half = draws;
+      } else {
+        ASSERT_EQ(draws.size(), draws_at_half.size());
+        for (size_t j = 0; j < draws.size(); ++j) {
+          EXPECT_NEAR((draws[j] - 2 * draws_at_half[j]).norm(), 0.0, 1e-9) << kind;
+        }
+      }
+    }
+  }
+}
+
+TEST(TruthFramesTest, HeldOutOptionsCheck) {
+  TruthFramesOptions options;
+  options.kind = "heldout";
+  options.held_min_units = 0;
+  EXPECT_FALSE(options.Check());
+  options = TruthFramesOptions();
+  options.held_min_units = 3;
+  options.held_max_units = 2;
+  EXPECT_FALSE(options.Check());
+  options = TruthFramesOptions();
+  options.kind = "mixed";
+  options.min_units = 1;
+  options.max_units = 1;
   EXPECT_FALSE(options.Check());
 }
 
