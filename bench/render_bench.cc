@@ -3,6 +3,8 @@
 // synthetic actor, default render options with noise and vignetting),
 // geometry evaluation included, as `hmc synth shot` does per frame.
 //   build/bin/hmc_render_bench --benchmark_min_time=5
+#include <malloc.h>
+
 #include <memory>
 
 #include <benchmark/benchmark.h>
@@ -26,6 +28,7 @@ struct Fixture {
 
 Fixture& Get() {
   static Fixture* fixture = [] {
+    KeepRenderBuffersMapped();
     auto* f = new Fixture;
     SynthActorOptions synth;
     f->model = std::make_unique<FaceModel>(synth);

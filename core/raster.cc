@@ -70,23 +70,26 @@ int RasterBuffer::NumCovered() const {
   return count;
 }
 
-RasterBuffer Rasterize(const MatX3d& screen, const Eigen::VectorXd& inv_w,
-                       const MatX3i& F, const RasterOptions& options) {
-  RasterBuffer buffer;
-  buffer.width = std::max(0, options.width);
-  buffer.height = std::max(0, options.height);
-  const size_t num_pixels =
-      static_cast<size_t>(buffer.width) * static_cast<size_t>(buffer.height);
-  buffer.depth.assign(num_pixels, std::numeric_limits<double>::infinity());
-  buffer.triangle.assign(num_pixels, -1);
-  buffer.bary.assign(num_pixels, Eigen::Vector3d::Zero());
-  if (num_pixels == 0 || F.rows() == 0) return buffer;
+namespace {
+
+// Triangle setups binned into square tiles (the unit of parallel work), in
+// triangle index order, so each tile sees its triangles in the same order
+// whatever the thread count.
+struct TiledTriangles {
+  std::vector<TriangleSetup> setups;
+  std::vector<std::vector<int32_t>> bins;
+  int tile = 32;
+  int tiles_x = 0;
+};
+
+TiledTriangles SetupAndBin(const MatX3d& screen, const Eigen::VectorXd& inv_w,
+                           const MatX3i& F, const RasterOptions& options,
+                           int width, int height) {
+  TiledTriangles out;
   const bool perspective = inv_w.size() > 0;
   HMC_CHECK(!perspective || inv_w.size() == screen.rows());
-
-  // Set up every triangle (parallel, one slot each).
   const int num_triangles = static_cast<int>(F.rows());
-  std::vector<TriangleSetup> setups(num_triangles);
+  out.setups.resize(num_triangles);
   std::vector<char> valid(num_triangles, 0);
   ParallelFor(
       0, num_triangles,
@@ -103,69 +106,130 @@ RasterBuffer Rasterize(const MatX3d& screen, const Eigen::VectorXd& inv_w,
           x[i] = screen(v, 0);
           y[i] = screen(v, 1);
         }
-        valid[t] = SetupTriangle(x, y, options.cull, &setups[t]);
+        valid[t] = SetupTriangle(x, y, options.cull, &out.setups[t]);
       },
       256);
-
-  // Bin triangles into tiles, in index order, so each tile later sees its
-  // triangles in the same order whatever the thread count.
-  const int tile = std::max(8, options.tile_size);
-  const int tiles_x = (buffer.width + tile - 1) / tile;
-  const int tiles_y = (buffer.height + tile - 1) / tile;
-  std::vector<std::vector<int32_t>> bins(static_cast<size_t>(tiles_x) * tiles_y);
+  out.tile = std::max(8, options.tile_size);
+  const int tile = out.tile;
+  out.tiles_x = (width + tile - 1) / tile;
+  const int tiles_y = (height + tile - 1) / tile;
+  out.bins.resize(static_cast<size_t>(out.tiles_x) * tiles_y);
   for (int t = 0; t < num_triangles; ++t) {
     if (!valid[t]) continue;
-    const TriangleSetup& s = setups[t];
-    if (s.max_x < 0 || s.max_y < 0 || s.min_x >= buffer.width ||
-        s.min_y >= buffer.height) {
+    const TriangleSetup& s = out.setups[t];
+    if (s.max_x < 0 || s.max_y < 0 || s.min_x >= width || s.min_y >= height) {
       continue;
     }
     const int tx0 = std::max(0, s.min_x) / tile;
     const int ty0 = std::max(0, s.min_y) / tile;
-    const int tx1 = std::min(buffer.width - 1, s.max_x) / tile;
-    const int ty1 = std::min(buffer.height - 1, s.max_y) / tile;
+    const int tx1 = std::min(width - 1, s.max_x) / tile;
+    const int ty1 = std::min(height - 1, s.max_y) / tile;
     for (int ty = ty0; ty <= ty1; ++ty) {
-      for (int tx = tx0; tx <= tx1; ++tx) bins[ty * tiles_x + tx].push_back(t);
+      for (int tx = tx0; tx <= tx1; ++tx) {
+        out.bins[ty * out.tiles_x + tx].push_back(t);
+      }
     }
   }
+  return out;
+}
 
-  // Each tile owns its pixels: no two threads write the same pixel.
-  ParallelFor(0, static_cast<int64_t>(bins.size()), [&](int64_t bin) {
-    const int tx = static_cast<int>(bin % tiles_x);
-    const int ty = static_cast<int>(bin / tiles_x);
-    const int x0 = tx * tile;
-    const int y0 = ty * tile;
-    const int x1 = std::min(buffer.width, x0 + tile) - 1;
-    const int y1 = std::min(buffer.height, y0 + tile) - 1;
-    for (int32_t t : bins[bin]) {
-      const TriangleSetup& s = setups[t];
-      const double inv_area = 1.0 / static_cast<double>(s.area2);
-      double iw[3] = {1.0, 1.0, 1.0};
-      double z[3];
-      for (int i = 0; i < 3; ++i) {
-        if (perspective) iw[i] = inv_w[F(t, i)];
-        z[i] = screen(F(t, i), 2);
-      }
-      ForEachCoveredPixel(s, x0, y0, x1, y1,
-                          [&](int px, int py, const int64_t w[3]) {
-        double q[3];
-        double sum = 0.0;
-        for (int i = 0; i < 3; ++i) {
-          q[i] = static_cast<double>(w[i]) * inv_area * iw[i];
-          sum += q[i];
-        }
-        const Eigen::Vector3d b(q[0] / sum, q[1] / sum, q[2] / sum);
-        const double depth = b[0] * z[0] + b[1] * z[1] + b[2] * z[2];
-        const int index = buffer.Index(px, py);
-        if (depth < buffer.depth[index]) {
-          buffer.depth[index] = depth;
-          buffer.triangle[index] = t;
-          buffer.bary[index] = b;
-        }
-      });
+// Calls fn(px, py, b, depth) for every pixel of tile `bin` covered by a
+// triangle, in triangle order: b the perspective-correct barycentrics,
+// depth the interpolated depth. Both rasterizers share it, so they agree
+// on every depth comparison.
+template <typename Fn>
+void ForEachTileFragment(const TiledTriangles& tiled, int64_t bin, int width,
+                         int height, const MatX3d& screen,
+                         const Eigen::VectorXd& inv_w, const MatX3i& F,
+                         const Fn& fn) {
+  const bool perspective = inv_w.size() > 0;
+  const int tile = tiled.tile;
+  const int tx = static_cast<int>(bin % tiled.tiles_x);
+  const int ty = static_cast<int>(bin / tiled.tiles_x);
+  const int x0 = tx * tile;
+  const int y0 = ty * tile;
+  const int x1 = std::min(width, x0 + tile) - 1;
+  const int y1 = std::min(height, y0 + tile) - 1;
+  for (int32_t t : tiled.bins[bin]) {
+    const TriangleSetup& s = tiled.setups[t];
+    const double inv_area = 1.0 / static_cast<double>(s.area2);
+    double iw[3] = {1.0, 1.0, 1.0};
+    double z[3];
+    for (int i = 0; i < 3; ++i) {
+      if (perspective) iw[i] = inv_w[F(t, i)];
+      z[i] = screen(F(t, i), 2);
     }
+    ForEachCoveredPixel(s, x0, y0, x1, y1,
+                        [&](int px, int py, const int64_t w[3]) {
+      double q[3];
+      double sum = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        q[i] = static_cast<double>(w[i]) * inv_area * iw[i];
+        sum += q[i];
+      }
+      const Eigen::Vector3d b(q[0] / sum, q[1] / sum, q[2] / sum);
+      const double depth = b[0] * z[0] + b[1] * z[1] + b[2] * z[2];
+      fn(px, py, t, b, depth);
+    });
+  }
+}
+
+}  // namespace
+
+RasterBuffer Rasterize(const MatX3d& screen, const Eigen::VectorXd& inv_w,
+                       const MatX3i& F, const RasterOptions& options) {
+  RasterBuffer buffer;
+  buffer.width = std::max(0, options.width);
+  buffer.height = std::max(0, options.height);
+  const size_t num_pixels =
+      static_cast<size_t>(buffer.width) * static_cast<size_t>(buffer.height);
+  buffer.depth.assign(num_pixels, std::numeric_limits<double>::infinity());
+  buffer.triangle.assign(num_pixels, -1);
+  buffer.bary.assign(num_pixels, Eigen::Vector3d::Zero());
+  if (num_pixels == 0 || F.rows() == 0) return buffer;
+  const TiledTriangles tiled =
+      SetupAndBin(screen, inv_w, F, options, buffer.width, buffer.height);
+  // Each tile owns its pixels: no two threads write the same pixel.
+  ParallelFor(0, static_cast<int64_t>(tiled.bins.size()), [&](int64_t bin) {
+    ForEachTileFragment(
+        tiled, bin, buffer.width, buffer.height, screen, inv_w, F,
+        [&](int px, int py, int32_t t, const Eigen::Vector3d& b, double depth) {
+          const int index = buffer.Index(px, py);
+          if (depth < buffer.depth[index]) {
+            buffer.depth[index] = depth;
+            buffer.triangle[index] = t;
+            buffer.bary[index] = b;
+          }
+        });
   });
   return buffer;
+}
+
+void RasterizeTriangleIds(const MatX3d& screen, const Eigen::VectorXd& inv_w,
+                          const MatX3i& F, const RasterOptions& options,
+                          std::vector<int32_t>* triangle) {
+  const int width = std::max(0, options.width);
+  const int height = std::max(0, options.height);
+  triangle->assign(static_cast<size_t>(width) * static_cast<size_t>(height), -1);
+  if (triangle->empty() || F.rows() == 0) return;
+  const TiledTriangles tiled = SetupAndBin(screen, inv_w, F, options, width, height);
+  const int tile = tiled.tile;
+  ParallelFor(0, static_cast<int64_t>(tiled.bins.size()), [&](int64_t bin) {
+    // The z-buffer lives only for the tile (cache resident).
+    std::vector<double> depth(static_cast<size_t>(tile) * tile,
+                              std::numeric_limits<double>::infinity());
+    const int x0 = static_cast<int>(bin % tiled.tiles_x) * tile;
+    const int y0 = static_cast<int>(bin / tiled.tiles_x) * tile;
+    ForEachTileFragment(
+        tiled, bin, width, height, screen, inv_w, F,
+        [&](int px, int py, int32_t t, const Eigen::Vector3d&, double z) {
+          double& nearest = depth[(py - y0) * tile + (px - x0)];
+          if (z < nearest) {
+            nearest = z;
+            (*triangle)[static_cast<size_t>(py) * width + px] = t;
+          }
+        });
+  });
 }
 
 }  // namespace hmc

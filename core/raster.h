@@ -127,6 +127,16 @@ struct RasterBuffer {
 RasterBuffer Rasterize(const MatX3d& screen, const Eigen::VectorXd& inv_w,
                        const MatX3i& F, const RasterOptions& options);
 
+// The triangle-id layer of Rasterize() alone: per pixel (row-major) the
+// row of F that Rasterize() would report, or -1. For renderers that
+// recompute the surface per pixel (synth/footage.h ray-intersects the seen
+// triangle), the full buffer's depth and barycentrics cost memory traffic
+// for nothing; here the z-buffer lives per tile. `triangle` is resized to
+// width * height.
+void RasterizeTriangleIds(const MatX3d& screen, const Eigen::VectorXd& inv_w,
+                          const MatX3i& F, const RasterOptions& options,
+                          std::vector<int32_t>* triangle);
+
 // Interpolates a per-vertex attribute (V x K, any K) at covered pixel
 // `index` of `buffer` rasterized from triangles F. Returns 1 x K.
 template <typename Derived>

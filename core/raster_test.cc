@@ -304,6 +304,44 @@ TEST_P(RasterSeeded, SameResultWhateverTheThreadCount) {
   EXPECT_GT(one.NumCovered(), 1000);
 }
 
+// The id-only rasterizer reports exactly the triangles of the full buffer
+// (same depth arithmetic, tile-local z-buffer), with and without
+// perspective weights, whatever the thread count and tile size.
+TEST_P(RasterSeeded, TriangleIdsMatchTheFullBuffer) {
+  std::mt19937 rng(GetParam() + 1000);
+  std::uniform_real_distribution<double> pos(-30.0, 250.0);
+  std::uniform_real_distribution<double> depth(1.0, 10.0);
+  const int num = 300;
+  MatX3d V(3 * num, 3);
+  MatX3i F(num, 3);
+  Eigen::VectorXd inv_w(3 * num);
+  for (int t = 0; t < num; ++t) {
+    const double z = depth(rng);
+    for (int i = 0; i < 3; ++i) {
+      V.row(3 * t + i) << pos(rng), pos(rng), z + (t % 3 == 0 ? depth(rng) : 0.0);
+      inv_w[3 * t + i] = 1.0 / V(3 * t + i, 2);
+    }
+    F.row(t) << 3 * t, 3 * t + 1, 3 * t + 2;
+  }
+  F.row(7) << -1, 0, 1;  // skipped by both
+  RasterOptions options;
+  options.width = 223;
+  options.height = 171;
+  for (const Eigen::VectorXd& w : {Eigen::VectorXd(), inv_w}) {
+    const RasterBuffer full = Rasterize(V, w, F, options);
+    std::vector<int32_t> ids;
+    for (int tile : {8, 32, 64}) {
+      options.tile_size = tile;
+      {
+        ThreadLimit limit(tile == 8 ? 1 : 0);
+        RasterizeTriangleIds(V, w, F, options, &ids);
+      }
+      EXPECT_EQ(ids, full.triangle) << "tile " << tile;
+    }
+    EXPECT_GT(full.NumCovered(), 10000);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Seeds, RasterSeeded, ::testing::Values(1, 2, 3, 99));
 
 TEST(Raster, CullsCounterClockwiseOnScreenAndRejectsBadInput) {

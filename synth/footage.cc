@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -16,7 +18,7 @@ namespace hmc {
 
 void FootageRenderOptions::Register(OptionFields* fields) {
   fields->SetGroup("render");
-  fields->Add("dot_radius", &dot_radius, "painted dot radius in the face plane (UV, mm)");
+  fields->Add("dot_radius", &dot_radius, "painted dot radius on the skin (mm)");
   fields->Add("dot_albedo", &dot_albedo, "reflectance of the dot paint");
   fields->Add("skin_albedo", &skin_albedo, "mean skin reflectance");
   fields->Add("albedo_variation", &albedo_variation,
@@ -349,15 +351,35 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
   grid_w_ = static_cast<int>((hi.x() - grid_origin_.x()) / cell_) + 2;
   grid_h_ = static_cast<int>((hi.y() - grid_origin_.y()) / cell_) + 2;
   dot_grid_.resize(static_cast<size_t>(grid_w_) * grid_h_);
-  const double reach = options.dot_radius + 3.0;  // radius + anti-aliasing margin
   for (size_t m = 0; m < markers.size(); ++m) {
     const SurfacePoint& sp = markers[m].point;
     Vec2 c = Vec2::Zero();
+    Eigen::Matrix2d metric = Eigen::Matrix2d::Identity();
     if (sp.face >= 0 && sp.face < F_.rows()) {
       for (int i = 0; i < 3; ++i) c += sp.bary[i] * st.row(F_(sp.face, i)).transpose();
+      // The linear map st -> neutral surface on the marker's triangle,
+      // M = E S^-1 (3 x 2), and its metric M^T M: a circle of the skin
+      // around the marker is an ellipse in st.
+      const int i0 = F_(sp.face, 0), i1 = F_(sp.face, 1), i2 = F_(sp.face, 2);
+      Eigen::Matrix<double, 3, 2> E;
+      E.col(0) = (neutral.V.row(i1) - neutral.V.row(i0)).transpose();
+      E.col(1) = (neutral.V.row(i2) - neutral.V.row(i0)).transpose();
+      Eigen::Matrix2d S;
+      S.col(0) = (st.row(i1) - st.row(i0)).transpose();
+      S.col(1) = (st.row(i2) - st.row(i0)).transpose();
+      if (std::abs(S.determinant()) > 1e-12) {
+        const Eigen::Matrix<double, 3, 2> M = E * S.inverse();
+        metric = M.transpose() * M;
+      }
     }
     dot_st_.push_back(c);
+    dot_metric_.push_back(metric);
     if (sp.face < 0 || sp.face >= F_.rows()) continue;
+    // Radius + anti-aliasing margin on the skin, in st along the most
+    // stretched direction.
+    const double lambda_min =
+        std::max(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(metric).eigenvalues()[0], 1e-2);
+    const double reach = (options.dot_radius + 3.0) / std::sqrt(lambda_min);
     const int x0 = static_cast<int>((c.x() - reach - grid_origin_.x()) / cell_);
     const int x1 = static_cast<int>((c.x() + reach - grid_origin_.x()) / cell_);
     const int y0 = static_cast<int>((c.y() - reach - grid_origin_.y()) / cell_);
@@ -365,6 +387,27 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
     for (int y = std::max(0, y0); y <= std::min(grid_h_ - 1, y1); ++y) {
       for (int x = std::max(0, x0); x <= std::min(grid_w_ - 1, x1); ++x) {
         dot_grid_[y * grid_w_ + x].push_back(static_cast<int>(m));
+      }
+    }
+  }
+  // Triangles by face-plane cell, for LocateFacePlane.
+  tri_origin_ = lo - Vec2::Constant(tri_cell_);
+  tri_w_ = static_cast<int>((hi.x() - tri_origin_.x()) / tri_cell_) + 2;
+  tri_h_ = static_cast<int>((hi.y() - tri_origin_.y()) / tri_cell_) + 2;
+  tri_grid_.resize(static_cast<size_t>(tri_w_) * tri_h_);
+  for (int f = 0; f < F_.rows(); ++f) {
+    Vec2 a = st.row(F_(f, 0)).transpose(), b = a;
+    for (int i = 1; i < 3; ++i) {
+      a = a.cwiseMin(st.row(F_(f, i)).transpose());
+      b = b.cwiseMax(st.row(F_(f, i)).transpose());
+    }
+    const int x0 = static_cast<int>((a.x() - tri_origin_.x()) / tri_cell_);
+    const int x1 = static_cast<int>((b.x() - tri_origin_.x()) / tri_cell_);
+    const int y0 = static_cast<int>((a.y() - tri_origin_.y()) / tri_cell_);
+    const int y1 = static_cast<int>((b.y() - tri_origin_.y()) / tri_cell_);
+    for (int y = std::max(0, y0); y <= std::min(tri_h_ - 1, y1); ++y) {
+      for (int x = std::max(0, x0); x <= std::min(tri_w_ - 1, x1); ++x) {
+        tri_grid_[y * tri_w_ + x].push_back(f);
       }
     }
   }
@@ -408,6 +451,43 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
     bearings_.push_back(std::move(rays));
     vignette_.push_back(vignette);
   }
+}
+
+const char* DotDiscName(DotDisc disc) {
+  switch (disc) {
+    case DotDisc::kFull:
+      return "full";
+    case DotDisc::kPartial:
+      return "partial";
+    case DotDisc::kHidden:
+      break;
+  }
+  return "hidden";
+}
+
+SurfacePoint FootageRenderer::LocateFacePlane(const Vec2& st) const {
+  SurfacePoint out;
+  out.face = -1;
+  const int gx = static_cast<int>(std::floor((st.x() - tri_origin_.x()) / tri_cell_));
+  const int gy = static_cast<int>(std::floor((st.y() - tri_origin_.y()) / tri_cell_));
+  if (gx < 0 || gy < 0 || gx >= tri_w_ || gy >= tri_h_) return out;
+  for (int f : tri_grid_[gy * tri_w_ + gx]) {
+    const Vec2 a = st_.row(F_(f, 0)).transpose();
+    const Vec2 e1 = st_.row(F_(f, 1)).transpose() - a;
+    const Vec2 e2 = st_.row(F_(f, 2)).transpose() - a;
+    const double det = e1.x() * e2.y() - e1.y() * e2.x();
+    if (std::abs(det) < 1e-15) continue;
+    const Vec2 q = st - a;
+    const double u = (q.x() * e2.y() - q.y() * e2.x()) / det;
+    const double v = (e1.x() * q.y() - e1.y() * q.x()) / det;
+    constexpr double kEps = 1e-9;
+    if (u >= -kEps && v >= -kEps && u + v <= 1 + kEps) {
+      out.face = f;
+      out.bary = Vec3(1 - u - v, u, v);
+      return out;
+    }
+  }
+  return out;
 }
 
 double FootageRenderer::Albedo(const Vec2& st) const {
@@ -466,7 +546,11 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
   RasterOptions raster_options;
   raster_options.width = width;
   raster_options.height = height;
-  const RasterBuffer buffer = Rasterize(tris.screen, Eigen::VectorXd(), tris.F, raster_options);
+  // Only the triangle id per pixel: the shading below intersects each
+  // pixel's exact ray with that triangle, so the raster's own depth and
+  // barycentrics would be computed for nothing.
+  std::vector<int32_t> seen_triangle;
+  RasterizeTriangleIds(tris.screen, Eigen::VectorXd(), tris.F, raster_options, &seen_triangle);
 
   // Head lights beside every camera of the rig, in this camera's frame.
   std::vector<Vec3> lights;
@@ -545,7 +629,7 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
       double dist = std::numeric_limits<double>::infinity();
       int seen = -1;
       // Face.
-      const int sub = buffer.triangle[index];
+      const int sub = seen_triangle[index];
       if (sub >= 0 && d.squaredNorm() > 0) {
         const int f = tris.face[sub];
         const Vec3 p0 = X.row(F_(f, 0)), p1 = X.row(F_(f, 1)), p2 = X.row(F_(f, 2));
@@ -570,24 +654,25 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
               double keep = 1.0;
               bool have_jacobian = false;
               // Derivatives of st per pixel step in x and y.
-              Eigen::Vector3d jx = Eigen::Vector3d::Zero(), jy = Eigen::Vector3d::Zero();
-              auto coords = [&](const Vec3& bb) -> Eigen::Vector3d {
-                const Vec2 q = bb[0] * st_.row(F_(f, 0)).transpose() +
-                               bb[1] * st_.row(F_(f, 1)).transpose() +
-                               bb[2] * st_.row(F_(f, 2)).transpose();
-                return Eigen::Vector3d(q.x(), q.y(), 0);
+              Vec2 jx = Vec2::Zero(), jy = Vec2::Zero();
+              auto coords = [&](const Vec3& bb) -> Vec2 {
+                return bb[0] * st_.row(F_(f, 0)).transpose() +
+                       bb[1] * st_.row(F_(f, 1)).transpose() +
+                       bb[2] * st_.row(F_(f, 2)).transpose();
               };
-              const Eigen::Vector3d here = coords(b);
+              const Vec2 here = st;
               for (int m : dot_grid_[gy * grid_w_ + gx]) {
-                const Eigen::Vector3d centre(dot_st_[m].x(), dot_st_[m].y(), 0);
-                const Eigen::Vector3d offset = here - centre;
-                const double len = offset.norm();
+                // Distance on the skin (the metric of the neutral at the
+                // marker), so the dot is round on the skin.
+                const Vec2 offset = here - dot_st_[m];
+                const Vec2 g_offset = dot_metric_[m] * offset;
+                const double len = std::sqrt(std::max(0.0, offset.dot(g_offset)));
                 const double signed_mm = len - dot_r;
                 if (signed_mm > 2.5) continue;
                 if (!have_jacobian) {
                   // The coordinates at the neighbouring pixels' rays on the
                   // same plane.
-                  auto at = [&](int nx, int ny, Eigen::Vector3d* out) {
+                  auto at = [&](int nx, int ny, Vec2* out) {
                     const Vec3 dn = rays[ny * width + nx].cast<double>();
                     double sn;
                     Vec3 bn;
@@ -597,20 +682,21 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
                   };
                   const int nx = x + 1 < width ? x + 1 : x - 1;
                   const int ny = y + 1 < height ? y + 1 : y - 1;
-                  Eigen::Vector3d sx, sy;
+                  Vec2 sx, sy;
                   if (!at(nx, y, &sx) || !at(x, ny, &sy)) break;
                   jx = (sx - here) * (nx > x ? 1.0 : -1.0);
                   jy = (sy - here) * (ny > y ? 1.0 : -1.0);
                   have_jacobian = true;
                 }
                 // Signed distance to the dot's edge in pixels: the mm distance
-                // over its rate of change per pixel.
+                // over its rate of change per pixel (its gradient in st,
+                // G offset / len, through the st Jacobian).
                 double coverage;
                 if (len < 1e-12) {
                   coverage = 1.0;
                 } else {
-                  const Eigen::Vector3d u = offset / len;
-                  const double rate = std::hypot(jx.dot(u), jy.dot(u));
+                  const Vec2 grad = g_offset / len;
+                  const double rate = std::hypot(jx.dot(grad), jy.dot(grad));
                   const double signed_px = rate > 0 ? signed_mm / rate : signed_mm * 1e9;
                   coverage = std::clamp(0.5 - signed_px, 0.0, 1.0);
                 }
@@ -651,7 +737,28 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
         const Vec3 dy = (rays[ny * width + x].cast<double>() - d) * (ny > y ? 1.0 : -1.0);
         double sum = 0;
         int on_plate = 0;
-        for (int j = 0; j < 4; ++j) {
+        // Inside one pattern cell: the 16 samples' rays span a
+        // parallelogram, whose central projection onto the plate is the
+        // convex quadrilateral of the 4 corner samples; if these lie in
+        // one (convex) cell, so do all 16, and the loop below would sum 16
+        // equal values.
+        int cell = -2;
+        for (int j = 0; j < 4 && cell != -1; j += 3) {
+          for (int i = 0; i < 4 && cell != -1; i += 3) {
+            double s;
+            Vec2 local;
+            const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
+            const int c = hit(ray, &s, &local) ? pattern.Cell(local.x(), local.y()) : -1;
+            cell = cell == -2 || cell == c ? c : -1;
+            if (i == 0 && j == 0 && c >= 0) sum = 16 * pattern.Sample(local.x(), local.y());
+          }
+        }
+        if (cell >= 0) {
+          on_plate = 16;
+        } else {
+          sum = 0;
+        }
+        for (int j = 0; j < 4 && cell < 0; ++j) {
           for (int i = 0; i < 4; ++i) {
             const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
             double s;
@@ -686,11 +793,15 @@ ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& sa
   HMC_CHECK(camera >= 0 && camera < NumCameras() && !samples.empty());
   const FisheyeCamera& cam = rig_.cameras[camera].camera;
   ViewRender out;
-  out.radiance = cv::Mat::zeros(cam.height, cam.width, CV_32F);
+  out.radiance = cv::Mat(cam.height, cam.width, CV_32F);  // every pixel is written
   out.depth = cv::Mat(cam.height, cam.width, CV_32F);
   out.surface = cv::Mat(cam.height, cam.width, CV_32S);
   const size_t middle = samples.size() / 2;
-  cv::Mat one(cam.height, cam.width, CV_32F);
+  cv::Mat one;
+  if (samples.size() > 1) {
+    out.radiance.setTo(0);
+    one.create(cam.height, cam.width, CV_32F);
+  }
   for (size_t i = 0; i < samples.size(); ++i) {
     const bool main = i == middle;
     ShadeInto(camera, samples[i], paint_dots, samples.size() == 1 ? &out.radiance : &one,
@@ -698,19 +809,22 @@ ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& sa
               main ? &out.stats : nullptr);
     if (samples.size() > 1) out.radiance += one / static_cast<double>(samples.size());
   }
-  cv::Mat signal = out.radiance.clone();
+  cv::Mat signal = out.radiance;  // a copy only when defocus changes it
   if (options_.defocus_px > 0) {
-    cv::GaussianBlur(signal, signal, cv::Size(0, 0), options_.defocus_px);
+    cv::GaussianBlur(out.radiance, signal, cv::Size(0, 0), options_.defocus_px);
   }
-  if (options_.vignetting > 0) signal = signal.mul(vignette_[camera]);
   out.image = cv::Mat(cam.height, cam.width, CV_8U);
   const double read = options_.read_noise, shot = options_.shot_noise;
+  const bool vignetting = options_.vignetting > 0;
   const std::vector<float>& normals = NormalTable();
+  // Vignetting, noise and quantisation in one pass over the image.
   ParallelFor(0, cam.height, [&](int64_t y) {
     const float* in = signal.ptr<float>(static_cast<int>(y));
+    const float* vignette = vignette_[camera].ptr<float>(static_cast<int>(y));
     uint8_t* row = out.image.ptr<uint8_t>(static_cast<int>(y));
     for (int x = 0; x < cam.width; ++x) {
-      double level = 255.0 * in[x];
+      const float value = vignetting ? in[x] * vignette[x] : in[x];
+      double level = 255.0 * value;
       if (read > 0 || shot > 0) {
         // Per-pixel hashed draw: the same noise whatever the thread count.
         const uint64_t h =
@@ -730,39 +844,32 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
   const FisheyeCamera& cam = hc.camera;
   const Rigid3 cam_from_head = hc.cam_from_helmet * state.head_from_helmet.inverse();
   const MatX3d& X_head = *state.X_head;
-  std::vector<DotTruth> out(markers_.size());
-  for (size_t m = 0; m < markers_.size(); ++m) {
-    const SurfacePoint& sp = markers_[m].point;
-    DotTruth& dot = out[m];
-    if (sp.face < 0 || sp.face >= F_.rows()) continue;
-    Vec3 tri[3];
-    for (int i = 0; i < 3; ++i) tri[i] = cam_from_head * Vec3(X_head.row(F_(sp.face, i)));
-    dot.in_cam = cam_from_head * EvaluateSurfacePoint(sp, F_, X_head);
-    dot.projects = cam.Project(dot.in_cam, &dot.pixel) && cam.IsInImage(dot.pixel);
-    const Vec3 n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-    dot.facing = n.dot(-dot.in_cam) > 0;
-    if (!dot.projects || !dot.facing) continue;
-    const int px = std::clamp(static_cast<int>(std::lround(dot.pixel.x())), 0, cam.width - 1);
-    const int py = std::clamp(static_cast<int>(std::lround(dot.pixel.y())), 0, cam.height - 1);
+  auto corner = [&](int f, int i) -> Vec3 { return cam_from_head * Vec3(X_head.row(F_(f, i))); };
+  // Whether mesh point q (camera frame) on triangle `face` is what the
+  // camera sees at q's own pixel: the triangle seen there (or the rendered
+  // depth) is not nearer on q's ray than kOcclusionToleranceMm.
+  auto unoccluded = [&](int face, const Vec3& q, Vec2* pixel) {
+    if (!cam.Project(q, pixel) || !cam.IsInImage(*pixel)) return false;
+    const int px = std::clamp(static_cast<int>(std::lround(pixel->x())), 0, cam.width - 1);
+    const int py = std::clamp(static_cast<int>(std::lround(pixel->y())), 0, cam.height - 1);
     const int seen = view.surface.at<int32_t>(py, px);
-    const double range = dot.in_cam.norm();
-    const Vec3 ray = dot.in_cam / range;
+    const double range = q.norm();
+    const Vec3 ray = q / range;
     double occluder = std::numeric_limits<double>::infinity();
-    bool adjacent = false;  // the seen triangle shares a corner with the dot's
+    bool adjacent = false;  // the seen triangle shares a corner with q's
     for (int i = 0; seen >= 0 && i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) adjacent |= F_(seen, i) == F_(sp.face, j);
+      for (int j = 0; j < 3; ++j) adjacent |= F_(seen, i) == F_(face, j);
     }
     if (adjacent) {
-      // The dot's own surface patch: a neighbouring triangle cannot hide it
-      // (its extended plane may pass in front on a crease, so do not test).
+      // q's own surface patch: a neighbouring triangle cannot hide it (its
+      // extended plane may pass in front on a crease, so do not test).
       occluder = range;
     } else if (seen >= 0) {
-      // The triangle seen at the pixel, intersected with the dot's own ray.
-      Vec3 p[3];
-      for (int i = 0; i < 3; ++i) p[i] = cam_from_head * Vec3(X_head.row(F_(seen, i)));
+      // The triangle seen at the pixel, intersected with q's own ray.
       double s;
       Vec3 b;
-      if (IntersectPlane(ray, p[0], p[1], p[2], &s, &b) && b.minCoeff() > -0.25) {
+      if (IntersectPlane(ray, corner(seen, 0), corner(seen, 1), corner(seen, 2), &s, &b) &&
+          b.minCoeff() > -0.25) {
         occluder = s;
       } else {
         occluder = view.depth.at<float>(py, px) + 2.0;  // the pixel's depth, loosely
@@ -770,10 +877,87 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
     } else if (seen <= kTagSurface) {
       occluder = view.depth.at<float>(py, px);
     } else {
-      occluder = 0;  // nothing at the pixel centre: the dot is on the silhouette
+      occluder = 0;  // nothing at the pixel centre: q is on the silhouette
     }
-    dot.visible = occluder >= range - kOcclusionToleranceMm;
+    return occluder >= range - kOcclusionToleranceMm;
+  };
+  // Seen at most kMaxDiscViewDeg off the normal of triangle `face`.
+  const double min_cos = std::cos(kMaxDiscViewDeg * M_PI / 180);
+  auto not_grazing = [&](int face, const Vec3& q) {
+    const Vec3 n = (corner(face, 1) - corner(face, 0)).cross(corner(face, 2) - corner(face, 0));
+    return n.dot(-q) >= min_cos * n.norm() * q.norm();
+  };
+  // The disc samples in the unit disc of the skin: the rim and rings at
+  // 3/4, 1/2 and 1/4 of the radius (16 + 12 + 8 + 4 points, ~0.3 mm apart
+  // for the default dot), so a fold crossing the dot is found too.
+  std::vector<Vec2> unit_samples;
+  for (int ring = 4; ring >= 1; --ring) {
+    const int count = 4 * ring;
+    for (int k = 0; k < count; ++k) {
+      const double phi = 2 * M_PI * (k + 0.5 * (ring % 2)) / count;
+      unit_samples.push_back(ring / 4.0 * Vec2(std::cos(phi), std::sin(phi)));
+    }
   }
+  std::vector<DotTruth> out(markers_.size());
+  ParallelFor(0, static_cast<int64_t>(markers_.size()), [&](int64_t m) {
+    const SurfacePoint& sp = markers_[m].point;
+    DotTruth& dot = out[m];
+    if (sp.face < 0 || sp.face >= F_.rows()) return;
+    dot.in_cam = cam_from_head * EvaluateSurfacePoint(sp, F_, X_head);
+    dot.projects = cam.Project(dot.in_cam, &dot.pixel) && cam.IsInImage(dot.pixel);
+    const Vec3 n = (corner(sp.face, 1) - corner(sp.face, 0))
+                       .cross(corner(sp.face, 2) - corner(sp.face, 0));
+    dot.facing = n.dot(-dot.in_cam) > 0;
+    if (!dot.projects || !dot.facing) return;
+    Vec2 pixel;
+    dot.visible = unoccluded(sp.face, dot.in_cam, &pixel);
+    if (!dot.visible) return;
+    // The whole disc: samples st = centre + L^-T (r u) with G = L L^T, so
+    // that |offset| on the skin is r |u|.
+    dot.disc = DotDisc::kFull;
+    if (!not_grazing(sp.face, dot.in_cam)) dot.disc = DotDisc::kPartial;
+    const Eigen::Matrix2d L = dot_metric_[m].llt().matrixL();
+    for (size_t k = 0; k < unit_samples.size() && dot.disc == DotDisc::kFull; ++k) {
+      const Vec2 offset =
+          L.transpose().triangularView<Eigen::Upper>().solve(options_.dot_radius * unit_samples[k]);
+      const SurfacePoint sample = LocateFacePlane(dot_st_[m] + offset);
+      if (sample.face < 0) {
+        dot.disc = DotDisc::kPartial;  // off the painted mesh
+        break;
+      }
+      const Vec3 q = cam_from_head * EvaluateSurfacePoint(sample, F_, X_head);
+      if (!not_grazing(sample.face, q) || !unoccluded(sample.face, q, &pixel)) {
+        dot.disc = DotDisc::kPartial;
+      }
+    }
+    if (dot.disc != DotDisc::kFull) return;
+    // The image of the whole dot is the inside of its projected rim: its
+    // centroid is the rim polygon's area centroid.
+    double area = 0;
+    Vec2 sum = Vec2::Zero(), first(0, 0), previous(0, 0);
+    bool ok = true;
+    for (int k = 0; k <= kRimSamples && ok; ++k) {
+      Vec2 q(0, 0);
+      if (k < kRimSamples) {
+        const double phi = 2 * M_PI * k / kRimSamples;
+        const Vec2 offset = L.transpose().triangularView<Eigen::Upper>().solve(
+            options_.dot_radius * Vec2(std::cos(phi), std::sin(phi)));
+        const SurfacePoint sample = LocateFacePlane(dot_st_[m] + offset);
+        ok = sample.face >= 0 &&
+             cam.Project(cam_from_head * EvaluateSurfacePoint(sample, F_, X_head), &q);
+        if (k == 0) first = q;
+      } else {
+        q = first;
+      }
+      if (k > 0) {
+        const double cross = previous.x() * q.y() - q.x() * previous.y();
+        area += cross;
+        sum += cross * (previous + q);
+      }
+      previous = q;
+    }
+    if (ok && std::abs(area) > 0) dot.centroid = sum / (3 * area);
+  });
   return out;
 }
 

@@ -8,13 +8,14 @@
 //    chord is within `max_edge_error_px` of the projected (curved) edge
 //    (midpoint sagitta; the split decision depends on the edge alone, so
 //    neighbours split shared edges alike and no T-junction cracks appear),
-//    then rasterized with core/raster.h's z-buffer.
+//    then rasterized with core/raster.h's z-buffer (triangle ids only).
 // 2. Shading, per pixel: the pixel's exact ray (precomputed bearings) is
 //    intersected with the visible (flat) triangle of the mesh, so the
 //    surface point, its UV and depth are exact, not interpolated through
 //    the projection. The albedo is the face-plane (UV) texture: a smooth skin
-//    variation plus the painted dots, discs in UV space (they stretch with
-//    the skin), anti-aliased by their signed distance in pixels. Lambert
+//    variation plus the painted dots, discs round on the neutral skin and
+//    attached to UV (they stretch with the skin), anti-aliased by their
+//    signed distance in pixels. Lambert
 //    shading by one light beside each camera (inverse-square falloff).
 //    Tags: planar plates, ray-intersected exactly and supersampled.
 // 3. Camera: optional motion blur (sub-frame samples), defocus (Gaussian),
@@ -25,6 +26,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -40,7 +42,7 @@
 namespace hmc {
 
 struct FootageRenderOptions {
-  double dot_radius = 1.2;          // painted dot radius in the face plane (UV, mm)
+  double dot_radius = 1.2;          // painted dot radius on the skin (mm)
   double dot_albedo = 0.07;         // reflectance of the dot paint
   double skin_albedo = 0.6;         // mean skin reflectance
   double albedo_variation = 0.1;    // relative amplitude of the skin's albedo variation
@@ -104,6 +106,15 @@ struct ViewRender {
 };
 constexpr int kTagSurface = -1000;
 
+// How much of a painted dot a camera sees (dots_2d.csv `disc`).
+enum class DotDisc {
+  kHidden,   // the marker's own point is not visible
+  kPartial,  // the marker's point is visible, but part of the disc is hidden
+             // or seen at a grazing angle (its centroid is not the marker's)
+  kFull,     // the whole disc is visible and none of it grazing
+};
+const char* DotDiscName(DotDisc disc);  // "hidden", "partial", "full"
+
 // Ground truth of one dot in one camera.
 struct DotTruth {
   Vec2 pixel = Vec2::Zero();  // projection of the marker's surface point
@@ -111,11 +122,19 @@ struct DotTruth {
   bool projects = false;      // in front of the lens and inside the image
   bool facing = false;        // its triangle faces the camera
   bool visible = false;       // projects, faces and nothing is nearer on its ray
+  DotDisc disc = DotDisc::kHidden;  // the whole painted disc (ProjectDots)
+  // For a kFull dot, where its image's intensity centroid lies: the area
+  // centroid of its projected rim (kRimSamples points of the disc's edge
+  // on the truth mesh). On curved skin this is not `pixel`: the rim lies
+  // h = r^2 / (2 R) below the marker's tangent plane (R the skin's radius
+  // of curvature), so its centre projects about h sin(view angle) away.
+  // NaN for other dots.
+  Vec2 centroid = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 class FootageRenderer {
  public:
-  // neutral: the actor's neutral mesh (triangles; positions unused);
+  // neutral: the actor's neutral mesh (triangles; positions shape the dots);
   // st: V x 2 face-plane texture coordinates (mm, linear in UV) in which
   // the dots are round; markers: the painted dots; seed: the albedo texture.
   FootageRenderer(const TriMesh& neutral, const MatX2d& st,
@@ -138,7 +157,16 @@ class FootageRenderer {
   // nearer than kOcclusionToleranceMm in front of it.
   std::vector<DotTruth> ProjectDots(int camera, const SceneState& state,
                                     const ViewRender& view) const;
+  // `disc`: the centre and kDiscSamples points of the painted disc (its
+  // rim and rings at 3/4, 1/2, 1/4 of its radius) are each tested like the
+  // centre (projects, visible at its own pixel) and must be seen at most
+  // kMaxDiscViewDeg off their triangle's normal; all pass: kFull. 60
+  // degrees: beyond it the dot is foreshortened more than 2:1 and its far
+  // half is crowded into a few pixels.
   static constexpr double kOcclusionToleranceMm = 0.3;
+  static constexpr int kDiscSamples = 40;
+  static constexpr double kMaxDiscViewDeg = 60;
+  static constexpr int kRimSamples = 64;
 
   // Each tag's four corners (HelmetTag::CornersInHelmet order) in `camera`;
   // a corner that does not project is NaN.
@@ -146,6 +174,15 @@ class FootageRenderer {
 
   // The face-plane centre of each marker's dot (mm).
   const std::vector<Vec2>& dot_centres() const { return dot_st_; }
+
+  // The painted disc of marker m in the face plane: points st with
+  // (st - centre)^T G (st - centre) <= dot_radius^2, G = dot_metric(m), the
+  // neutral surface's metric at the marker (3D mm^2 per st mm^2), so the dot
+  // is round on the skin, not in UV.
+  const Eigen::Matrix2d& dot_metric(int m) const { return dot_metric_[m]; }
+
+  // The mesh point at face-plane coordinates st (face -1 if none).
+  SurfacePoint LocateFacePlane(const Vec2& st) const;
 
  private:
   struct Frame;
@@ -161,6 +198,12 @@ class FootageRenderer {
   std::vector<std::vector<int>> vertex_faces_;
   std::vector<Marker> markers_;
   std::vector<Vec2> dot_st_;
+  std::vector<Eigen::Matrix2d> dot_metric_;
+  // Triangles by face-plane grid cell (tri_cell_ mm), for LocateFacePlane.
+  double tri_cell_ = 1.0;
+  Vec2 tri_origin_ = Vec2::Zero();
+  int tri_w_ = 0, tri_h_ = 0;
+  std::vector<std::vector<int>> tri_grid_;
 
   // Dots by face-plane grid cell (cell_ mm) for the per-pixel lookup.
   double cell_ = 4.0;

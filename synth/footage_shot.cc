@@ -1,7 +1,10 @@
 #include "synth/footage_shot.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <chrono>
+#include <future>
 #include <limits>
 #include <set>
 #include <cmath>
@@ -55,9 +58,10 @@ std::string SynthShotSummary::BriefReport() const {
   return fmt::format(
       "{} frames x {} cameras rendered in {:.1f} s ({:.1f} stereo frames/s; {:.1f} s with "
       "writing); max edge error {:.4f} px, {:.2f}% of triangles split; {:.1f} visible "
-      "dots per view",
+      "dots per view, {:.1f} of them wholly",
       frames, cameras, render_seconds, render_seconds > 0 ? frames / render_seconds : 0.0,
-      total_seconds, max_edge_error_px, 100 * split_fraction, mean_visible_dots);
+      total_seconds, max_edge_error_px, 100 * split_fraction, mean_visible_dots,
+      mean_full_dots);
 }
 
 namespace {
@@ -136,9 +140,11 @@ cv::Mat ContactPanel(const cv::Mat& image, const std::vector<DotTruth>& dots, bo
       const int shift = 4;
       const cv::Point centre(static_cast<int>(std::lround(p.x * (1 << shift))),
                              static_cast<int>(std::lround(p.y * (1 << shift))));
-      cv::circle(bgr, centre, 3 << shift,
-                 dot.visible ? cv::Scalar(60, 220, 60) : cv::Scalar(40, 40, 230), 1,
-                 cv::LINE_AA, shift);
+      // Green: whole dot visible; yellow: partly hidden or grazing; red: hidden.
+      const cv::Scalar color = dot.disc == DotDisc::kFull      ? cv::Scalar(60, 220, 60)
+                               : dot.disc == DotDisc::kPartial ? cv::Scalar(40, 210, 230)
+                                                               : cv::Scalar(40, 40, 230);
+      cv::circle(bgr, centre, 3 << shift, color, 1, cv::LINE_AA, shift);
     }
   }
   cv::putText(bgr, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
@@ -147,6 +153,11 @@ cv::Mat ContactPanel(const cv::Mat& image, const std::vector<DotTruth>& dots, bo
 }
 
 }  // namespace
+
+void KeepRenderBuffersMapped() {
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 512 << 20);
+}
 
 HelmetRig MakeShotRig(const FaceModel& model, const HelmetRigOptions& options) {
   return MakeHelmetRig(options, FaceFrontZ(model.neutral(), options.upper_camera_y),
@@ -159,6 +170,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   if (!options.Check()) throw InputError("invalid synth shot options (see the message above)");
   const auto start = std::chrono::steady_clock::now();
   ThreadLimit thread_limit(options.threads);
+  KeepRenderBuffersMapped();
   EnsureDirectory(out_dir);
   const PerformanceOptions& perf = options.performance;
   const HelmetRig rig = MakeShotRig(model, options.rig);
@@ -186,15 +198,22 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   truth.fps = perf.fps;
   std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
   std::vector<JawFrame> jaw(num_frames);
-  std::string dots_csv = "frame,camera,marker,x,y,visible\n";
+  std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy\n";
   std::string pose_csv =
       "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
   SynthShotSummary summary;
   summary.frames = num_frames;
   summary.cameras = num_cameras;
-  int64_t input_triangles = 0, split_triangles = 0, visible = 0;
+  int64_t input_triangles = 0, split_triangles = 0, visible = 0, full = 0;
   const MatX3i& F = model.neutral().F;
   const int blur = options.render.motion_blur_samples;
+  // Encoding runs beside the rendering: frame f's images are written while
+  // frame f + 1 renders (FFV1 encoding is serial). One write task at a
+  // time, in frame order, so the files are the same as written inline.
+  std::future<void> writing;
+  auto wait_for_writing = [&] {
+    if (writing.valid()) writing.get();  // rethrows a write error
+  };
   Progress progress("synth shot", num_frames);
   for (int f = 0; f < num_frames; ++f) {
     const int frame = truth.start_frame + f;
@@ -230,6 +249,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     }
     pose_csv += fmt::format("{},{}\n", frame, Rigid3Row(head_from_helmet));
     std::vector<cv::Mat> panels;
+    std::vector<cv::Mat> images(num_cameras);
     for (int c = 0; c < num_cameras; ++c) {
       const auto render_start = std::chrono::steady_clock::now();
       const uint64_t key = (static_cast<uint64_t>(perf.seed) << 32) ^
@@ -241,13 +261,18 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
       summary.max_edge_error_px = std::max(summary.max_edge_error_px, view.stats.max_edge_error_px);
       input_triangles += view.stats.input_triangles;
       split_triangles += view.stats.split_triangles;
-      sinks[c].Write(frame, view.image);
+      images[c] = view.image;
       for (size_t m = 0; m < dots.size(); ++m) {
         if (!dots[m].projects) continue;
         visible += dots[m].visible;
-        dots_csv += fmt::format("{},{},{},{:.6f},{:.6f},{}\n", frame, rig.cameras[c].name,
-                                actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(),
-                                dots[m].visible ? 1 : 0);
+        full += dots[m].disc == DotDisc::kFull;
+        const Vec2& centroid = dots[m].centroid;
+        dots_csv += fmt::format(
+            "{},{},{},{:.6f},{:.6f},{},{},{}\n", frame, rig.cameras[c].name,
+            actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
+            DotDiscName(dots[m].disc),
+            centroid.allFinite() ? fmt::format("{:.6f},{:.6f}", centroid.x(), centroid.y())
+                                 : std::string(","));
       }
       if (contact.count(f)) {
         panels.push_back(ContactPanel(view.image, dots, options.contact_dots,
@@ -255,6 +280,10 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
                                       fmt::format("frame {} {}", frame, rig.cameras[c].name)));
       }
     }
+    wait_for_writing();
+    writing = std::async(std::launch::async, [&sinks, frame, images = std::move(images)] {
+      for (size_t c = 0; c < images.size(); ++c) sinks[c].Write(frame, images[c]);
+    });
     if (!panels.empty()) {
       cv::Mat row;
       cv::hconcat(panels, row);
@@ -262,6 +291,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     }
     progress.Advance();
   }
+  wait_for_writing();
   progress.Finish();
   for (FrameSink& sink : sinks) sink.Finish();
 
@@ -299,6 +329,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   summary.split_fraction =
       input_triangles > 0 ? static_cast<double>(split_triangles) / input_triangles : 0.0;
   summary.mean_visible_dots = visible / std::max(1.0, total_views);
+  summary.mean_full_dots = full / std::max(1.0, total_views);
   summary.total_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;

@@ -12,6 +12,7 @@
 #include <apriltag/apriltag.h>
 #include <apriltag/common/image_u8.h>
 #include <apriltag/tag36h11.h>
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "core/parallel.h"
@@ -54,19 +55,29 @@ Scene MakeScene(int seed, int width = 640, int height = 512) {
 // (I with dots, I0 without; the ratio removes the shading), over the
 // connected region of positive weight around the dot's projected pixel.
 // A dot counts only if the ring around its region is its own surface
-// (no occluding edge or image border touches it).
+// (no occluding edge or image border touches it) and the region holds no
+// other dot's projection.
 struct Centroid {
   int marker;
   Vec2 measured;
   Vec2 truth;
+  int pixels = 0;
 };
 
 std::vector<Centroid> DotCentroids(const ViewRender& with, const ViewRender& without,
                                    const std::vector<DotTruth>& dots) {
   const int w = with.radiance.cols, h = with.radiance.rows;
+  // Each projecting dot's nearest pixel: a blob that reaches another dot's
+  // is two dots whose anti-aliased edges touch, not one dot.
+  std::map<int, int> dot_at_pixel;
+  for (size_t m = 0; m < dots.size(); ++m) {
+    if (!dots[m].projects) continue;
+    dot_at_pixel[static_cast<int>(std::lround(dots[m].pixel.y())) * w +
+                 static_cast<int>(std::lround(dots[m].pixel.x()))] = static_cast<int>(m);
+  }
   std::vector<Centroid> out;
   for (size_t m = 0; m < dots.size(); ++m) {
-    if (!dots[m].visible) continue;
+    if (dots[m].disc != DotDisc::kFull) continue;
     const int cx = static_cast<int>(std::lround(dots[m].pixel.x()));
     const int cy = static_cast<int>(std::lround(dots[m].pixel.y()));
     auto weight = [&](int x, int y) {
@@ -84,6 +95,8 @@ std::vector<Centroid> DotCentroids(const ViewRender& with, const ViewRender& wit
     while (!queue.empty() && clean) {
       const auto [x, y] = queue.front();
       queue.pop();
+      const auto other = dot_at_pixel.find(y * w + x);
+      if (other != dot_at_pixel.end() && other->second != static_cast<int>(m)) clean = false;
       const double wt = weight(x, y);
       sw += wt;
       sx += wt * x;
@@ -107,15 +120,58 @@ std::vector<Centroid> DotCentroids(const ViewRender& with, const ViewRender& wit
       if (count > 4000) clean = false;
     }
     if (!clean || sw <= 0) continue;
-    out.push_back({static_cast<int>(m), Vec2(sx / sw, sy / sw), dots[m].pixel});
+    out.push_back({static_cast<int>(m), Vec2(sx / sw, sy / sw), dots[m].pixel, count});
   }
   return out;
 }
 
+// Where geometry alone puts a fully visible dot's centroid: the area
+// centroid of the polygon of its projected rim (128 points of the disc's
+// edge on the truth skin, projected exactly). The image of a fully visible
+// dot is the inside of its projected rim, so this is its centroid up to
+// the anti-aliasing, including the perspective and the curvature of the
+// skin under the dot; it is not the projection of the marker when the skin
+// is curved (the rim lies h = r^2 / (2 R) below the marker's tangent
+// plane, and its centre projects h sin(view angle) off the marker).
+Vec2 ProjectedRimCentroid(const FootageRenderer& renderer, const Scene& scene, const MatX3d& X,
+                          const SceneState& state, int camera, int marker) {
+  const Eigen::Matrix2d L = renderer.dot_metric(marker).llt().matrixL();
+  const HelmetCamera& hc = scene.rig.cameras[camera];
+  const Rigid3 cam_from_head = hc.cam_from_helmet * state.head_from_helmet.inverse();
+  constexpr int kRim = 128;
+  std::vector<Vec2> polygon;
+  for (int k = 0; k < kRim; ++k) {
+    const Vec2 u(std::cos(2 * M_PI * k / kRim), std::sin(2 * M_PI * k / kRim));
+    const Vec2 offset =
+        L.transpose().triangularView<Eigen::Upper>().solve(scene.options.dot_radius * u);
+    const SurfacePoint sp = renderer.LocateFacePlane(renderer.dot_centres()[marker] + offset);
+    EXPECT_GE(sp.face, 0);
+    Vec2 pixel(0, 0);
+    if (sp.face >= 0) {
+      EXPECT_TRUE(hc.camera.Project(
+          cam_from_head * EvaluateSurfacePoint(sp, scene.model->neutral().F, X), &pixel));
+    }
+    polygon.push_back(pixel);
+  }
+  double area = 0;
+  Vec2 centroid = Vec2::Zero();
+  for (int k = 0; k < kRim; ++k) {
+    const Vec2& p = polygon[k];
+    const Vec2& q = polygon[(k + 1) % kRim];
+    const double cross = p.x() * q.y() - q.x() * p.y();
+    area += cross;
+    centroid += cross * (p + q);
+  }
+  return centroid / (3 * area);
+}
+
 TEST(FootageTest, DotCentroidsMatchProjectedMarkers) {
-  std::vector<double> all_errors, flat_errors;
+  std::vector<double> marker_errors, flat_errors, centroid_errors;
   std::map<std::string, std::vector<double>> by_region;
-  for (int seed : {1, 2}) {
+  std::vector<std::pair<double, std::string>> worst;
+  int num_full = 0, num_partial = 0, num_hidden = 0, num_unmeasured = 0;
+  double worst_truth_centroid = 0;
+  for (int seed : {1, 2, 3}) {
     Scene scene = MakeScene(seed, 1280, 1024);
     const FootageRenderer renderer(scene.model->neutral(), scene.model->face().st,
                                    scene.markers, scene.rig, scene.options, seed);
@@ -123,7 +179,7 @@ TEST(FootageTest, DotCentroidsMatchProjectedMarkers) {
     perf.frames = 40;
     perf.seed = seed;
     const ShotPerformance performance = MakePerformance(*scene.model, perf);
-    for (int f : {7, 31}) {
+    for (int f : {7 + seed, 31 - seed}) {
       const MatX3d X = scene.model->Evaluate(performance.activations[f]);
       const SceneState state{&X, performance.head_from_helmet[f]};
       for (int c = 0; c < renderer.NumCameras(); ++c) {
@@ -131,49 +187,91 @@ TEST(FootageTest, DotCentroidsMatchProjectedMarkers) {
         const ViewRender without = renderer.Render(c, {state}, 0, false);
         const std::vector<DotTruth> dots = renderer.ProjectDots(c, state, with);
         const std::vector<Centroid> centroids = DotCentroids(with, without, dots);
-        int num_visible = 0;
-        for (const DotTruth& d : dots) num_visible += d.visible;
-        // Most visible dots are isolated and fully seen.
-        EXPECT_GT(centroids.size(), 0.6 * num_visible) << "seed " << seed << " cam " << c;
-        EXPECT_GT(num_visible, 60);
+        int full = 0;
+        for (size_t m = 0; m < dots.size(); ++m) {
+          const DotTruth& d = dots[m];
+          if (!d.projects) continue;
+          EXPECT_EQ(d.disc != DotDisc::kHidden, d.visible);
+          EXPECT_EQ(d.disc == DotDisc::kFull, d.centroid.allFinite());
+          full += d.disc == DotDisc::kFull;
+          num_partial += d.disc == DotDisc::kPartial;
+          num_hidden += d.disc == DotDisc::kHidden;
+          if (d.disc == DotDisc::kFull) {
+            // The ground truth's centroid against this test's own, finer
+            // rim polygon.
+            const Vec2 rim = ProjectedRimCentroid(renderer, scene, X, state, c, m);
+            worst_truth_centroid = std::max(worst_truth_centroid, (rim - d.centroid).norm());
+          }
+        }
+        num_full += full;
+        EXPECT_GT(full, 30) << "seed " << seed << " cam " << c;
+        // Fully visible dots are isolated blobs of their own surface, but
+        // two dots' anti-aliased edges may touch in the image.
+        num_unmeasured += full - static_cast<int>(centroids.size());
         for (const Centroid& cen : centroids) {
-          const double error = (cen.measured - cen.truth).norm();
-          all_errors.push_back(error);
+          const DotTruth& d = dots[cen.marker];
+          const double error = (cen.measured - d.centroid).norm();
+          const double marker_error = (cen.measured - d.pixel).norm();
+          const double curvature_offset = (d.centroid - d.pixel).norm();
           const std::string& name = scene.markers[cen.marker].name;
-          by_region[name.substr(0, name.rfind('_'))].push_back(error);
-          if (name.rfind("forehead", 0) == 0 || name.rfind("temple", 0) == 0) {
-            flat_errors.push_back(error);
+          // Every fully visible dot images where the ground truth says.
+          EXPECT_LT(error, 0.1) << name << " seed " << seed << " frame " << f << " cam " << c;
+          centroid_errors.push_back(error);
+          marker_errors.push_back(marker_error);
+          by_region[name.substr(0, name.rfind('_'))].push_back(marker_error);
+          worst.push_back({marker_error,
+                           fmt::format("{} seed {} frame {} cam {}: truth centroid {:.3f} px off "
+                                       "the marker, measured {:.3f} px off the truth centroid",
+                                       name, seed, f, c, curvature_offset, error)});
+          // Skin flat enough under the dot (the geometry puts its centroid
+          // within 0.02 px of the marker): the marker itself is found.
+          if (curvature_offset < 0.02) {
+            flat_errors.push_back(marker_error);
+            EXPECT_LT(marker_error, 0.1) << name << " seed " << seed << " frame " << f;
           }
         }
       }
     }
   }
-  // A painted disc on a curved surface (lips, nose, brow ridge) images with
-  // its centroid off the projected centre by the surface's curvature (it
-  // scales with the dot's area; docs/footage.md has the numbers per region),
-  // so the 0.1 px bound holds for the typical dot and the flat regions, not
-  // for every dot.
   auto quantile = [](std::vector<double> v, double q) {
     std::sort(v.begin(), v.end());
     return v[static_cast<size_t>(q * (v.size() - 1))];
   };
-  ASSERT_GT(all_errors.size(), 500u);
-  ASSERT_GT(flat_errors.size(), 100u);
-  EXPECT_LT(quantile(all_errors, 0.5), 0.1);
-  EXPECT_LT(quantile(flat_errors, 0.95), 0.1);
-  RecordProperty("median_px", std::to_string(quantile(all_errors, 0.5)));
-  RecordProperty("p90_px", std::to_string(quantile(all_errors, 0.9)));
-  RecordProperty("flat_p95_px", std::to_string(quantile(flat_errors, 0.95)));
-  std::printf("dot centroid error (px): median %.4f p90 %.4f p99 %.4f max %.4f; forehead/temple "
-              "p95 %.4f max %.4f (%zu dots)\n",
-              quantile(all_errors, 0.5), quantile(all_errors, 0.9), quantile(all_errors, 0.99),
-              quantile(all_errors, 1.0), quantile(flat_errors, 0.95), quantile(flat_errors, 1.0),
-              all_errors.size());
+  EXPECT_LT(worst_truth_centroid, 0.01);
+  EXPECT_LE(num_unmeasured, num_full / 50) << "fully visible dots whose blobs touch others";
+  ASSERT_GT(centroid_errors.size(), 600u);
+  ASSERT_GT(flat_errors.size(), 50u);
+  // The typical fully visible dot is also within 0.1 px of its marker's
+  // projection, but not every one: on curved skin (lips, brows, nose) the
+  // centroid is the truth centroid, not the marker (docs/footage.md).
+  EXPECT_LT(quantile(marker_errors, 0.5), 0.1);
+  RecordProperty("centroid_max_px", std::to_string(quantile(centroid_errors, 1.0)));
+  RecordProperty("marker_median_px", std::to_string(quantile(marker_errors, 0.5)));
+  std::printf("dots in the image: %d full, %d partial, %d hidden (%.1f%% of the centre-visible "
+              "ones are partial); %d full ones not measurable (blobs touching)\n",
+              num_full, num_partial, num_hidden,
+              100.0 * num_partial / std::max(1, num_full + num_partial), num_unmeasured);
+  std::printf("centroid - truth centroid over %zu full dots (px): median %.4f p90 %.4f p99 %.4f "
+              "max %.4f (truth vs test rim polygon: %.4f)\n",
+              centroid_errors.size(), quantile(centroid_errors, 0.5),
+              quantile(centroid_errors, 0.9), quantile(centroid_errors, 0.99),
+              quantile(centroid_errors, 1.0), worst_truth_centroid);
+  std::printf("centroid - projected marker (px): median %.4f p90 %.4f p99 %.4f max %.4f\n",
+              quantile(marker_errors, 0.5), quantile(marker_errors, 0.9),
+              quantile(marker_errors, 0.99), quantile(marker_errors, 1.0));
+  std::printf("  %zu dots on flat skin (truth centroid < 0.02 px off the marker): median %.4f "
+              "max %.4f\n",
+              flat_errors.size(), quantile(flat_errors, 0.5), quantile(flat_errors, 1.0));
   for (const auto& [region, errors] : by_region) {
-    std::printf("  %-14s %3zu dots  median %.3f  max %.3f px\n", region.c_str(), errors.size(),
-                quantile(errors, 0.5), quantile(errors, 1.0));
+    std::printf("  %-14s %3zu dots  centroid - marker median %.3f  max %.3f px\n",
+                region.c_str(), errors.size(), quantile(errors, 0.5), quantile(errors, 1.0));
+  }
+  std::sort(worst.rbegin(), worst.rend());
+  for (size_t i = 0; i < std::min<size_t>(3, worst.size()); ++i) {
+    std::printf("  worst: %.3f px %s\n", worst[i].first, worst[i].second.c_str());
   }
 }
+
 TEST(FootageTest, HelmetTagsAreDetectedAtTheirProjectedCorners) {
   Scene scene = MakeScene(3, 1280, 1024);
   const FootageRenderer renderer(scene.model->neutral(), scene.model->face().st, scene.markers,
@@ -321,11 +419,28 @@ TEST(FootageTest, DeterministicAndIndependentOfThreadCount) {
   const MatX3d X = scene.model->neutral().V;
   const SceneState state{&X, Rigid3::Identity()};
   cv::Mat first, second, third;
+  std::vector<DotTruth> dots_one;
   {
     ThreadLimit limit(1);
-    first = renderer.Render(1, {state}, 99).image;
+    const ViewRender view = renderer.Render(1, {state}, 99);
+    first = view.image;
+    dots_one = renderer.ProjectDots(1, state, view);
   }
-  second = renderer.Render(1, {state}, 99).image;
+  const ViewRender view = renderer.Render(1, {state}, 99);
+  second = view.image;
+  const std::vector<DotTruth> dots_all = renderer.ProjectDots(1, state, view);
+  ASSERT_EQ(dots_one.size(), dots_all.size());
+  int full = 0;
+  for (size_t m = 0; m < dots_one.size(); ++m) {
+    EXPECT_EQ(dots_one[m].disc, dots_all[m].disc);
+    EXPECT_EQ(dots_one[m].pixel, dots_all[m].pixel);
+    EXPECT_EQ(dots_one[m].centroid.allFinite(), dots_all[m].centroid.allFinite());
+    if (dots_one[m].centroid.allFinite()) {
+      EXPECT_EQ(dots_one[m].centroid, dots_all[m].centroid);
+    }
+    full += dots_one[m].disc == DotDisc::kFull;
+  }
+  EXPECT_GT(full, 10);
   third = renderer.Render(1, {state}, 100).image;
   EXPECT_EQ(cv::norm(first, second, cv::NORM_INF), 0);
   EXPECT_GT(cv::norm(first, third, cv::NORM_INF), 0) << "the noise key must change the noise";

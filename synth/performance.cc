@@ -5,6 +5,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "synth/synth_actor.h"
 #include "synth/synth_random.h"
 #include "synth/truth_frames.h"
 
@@ -93,7 +94,13 @@ ShotPerformance MakePerformance(const FaceModel& model,
   truth.fps = options.fps;
   ShotPerformance out;
   out.fps = options.fps;
-  out.activations = TruthActivations(model, {}, truth);
+  // The actor on camera can make every expression of its model: the plan
+  // of a dataset that holds no unit out, so none is missing from the
+  // performance (TruthActivations leaves out units absent from the plan).
+  SynthActorOptions all_units;
+  all_units.holdout = 0;
+  all_units.holdout_units.clear();
+  out.activations = TruthActivations(model, PlanDataset(model, all_units), truth);
   for (int f = 0; f < options.frames; ++f) {
     out.head_from_helmet.push_back(HeadFromHelmetAt(options, f / options.fps));
   }

@@ -40,4 +40,11 @@ double TagPattern::Sample(double x, double y) const {
   return white_[r * total_cells_ + c];
 }
 
+int TagPattern::Cell(double x, double y) const {
+  const double cx = x * border_cells_ + 0.5 * total_cells_;
+  const double cy = y * border_cells_ + 0.5 * total_cells_;
+  if (!(cx >= 0 && cy >= 0 && cx < total_cells_ && cy < total_cells_)) return -1;
+  return static_cast<int>(cy) * total_cells_ + static_cast<int>(cx);
+}
+
 }  // namespace hmc

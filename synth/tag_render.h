@@ -27,6 +27,11 @@ class TagPattern {
   // plate return -1.
   double Sample(double x, double y) const;
 
+  // The pattern cell (row * total + column) holding (x, y), -1 off the
+  // plate. Sample() is constant over a cell, which is convex: samples
+  // inside the convex hull of points of one cell need no lookup.
+  int Cell(double x, double y) const;
+
  private:
   int id_ = 0;
   int total_cells_ = 0;

@@ -137,17 +137,31 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   std::istringstream in(ReadFile(a / "dots_2d.csv"));
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "frame,camera,marker,x,y,visible");
-  int rows = 0, visible = 0;
+  EXPECT_EQ(line, "frame,camera,marker,x,y,visible,disc,cx,cy");
+  int rows = 0, visible = 0, full = 0;
   while (std::getline(in, line)) {
     std::istringstream row(line);
-    std::string frame, cam, marker, x, y, vis;
+    std::string frame, cam, marker, x, y, vis, disc, cx, cy;
     std::getline(row, frame, ',');
     std::getline(row, cam, ',');
     std::getline(row, marker, ',');
     std::getline(row, x, ',');
     std::getline(row, y, ',');
     std::getline(row, vis, ',');
+    std::getline(row, disc, ',');
+    std::getline(row, cx, ',');
+    std::getline(row, cy, ',');
+    // The expected dot centroid exists for fully visible dots only, and lies
+    // near the projected marker (the skin's curvature moves it < 1.5 px).
+    EXPECT_EQ(cx.empty(), disc != "full") << line;
+    if (!cx.empty()) {
+      EXPECT_LT((Vec2(std::stod(cx), std::stod(cy)) - Vec2(std::stod(x), std::stod(y))).norm(),
+                1.5) << line;
+    }
+    // A dot is fully visible only if its centre is.
+    EXPECT_TRUE(disc == "full" || disc == "partial" || disc == "hidden") << disc;
+    EXPECT_EQ(vis == "1", disc != "hidden") << line;
+    full += disc == "full";
     const int c = cam == "cam0" ? 0 : 1;
     const Vec3 p = helmet[std::stoi(frame) - 1].bundles.at(marker);
     Vec2 pixel;
@@ -158,6 +172,8 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   }
   EXPECT_GT(rows, 5 * 2 * 100);
   EXPECT_GT(visible, rows / 2);
+  EXPECT_GT(full, rows / 10);
+  EXPECT_LT(full, visible);
 }
 
 }  // namespace
