@@ -1,45 +1,41 @@
 // Per-frame solve on the default synthetic actor: index query, choice among
-// candidates and blend (+ jaw skinning) of one frame. Frames: mixtures of two
-// dataset shapes (unskinned, 50/50) under the mean of their jaw poses.
-// Args: min_tet_quality x 1000, max_edge_mm (0 = no bound), so the cost of
-// tetrahedron pruning can be read off: counters give the kept tetrahedra,
-// candidates per bundle and the verification error (every dataset shape
-// solved from its own bundles). Report the median of the repetitions.
-// Results: docs/PERFORMANCE.md.
+// candidates and blend (+ jaw skinning) of one frame of held-out random
+// combinations. Args: min_tet_quality x 1000, max_edge_mm (0 = no bound),
+// grid_max_cells, grid_entries_per_element, so
+// the cost and the benefit of tetrahedron pruning can be read off together:
+// counters give the kept tetrahedra, candidates per bundle, the
+// verification error (every dataset shape solved from its own bundles) and
+// the mean vertex error of held-out combinations and of a performance.
+// Report the median of the repetitions. Results: docs/PERFORMANCE.md.
 #include <map>
-#include <random>
+#include <tuple>
 
 #include <benchmark/benchmark.h>
 
 #include "blending/lgi_solver.h"
 #include "blending/solve_index_cache.h"
 #include "synth/synth_actor.h"
+#include "synth/truth_frames.h"
 
 namespace hmc {
 namespace {
 
 struct Base {
-  Base() : actor(SynthesizeActor(SynthActorOptions())) {
+  Base() : model(synth), actor(SynthesizeActorFromModel(model, synth)) {
     data = ComputeShapeData(actor);
     nn = ComputeNaturalNeighbourWeights(actor.neutral, data.sites,
                                         NaturalNeighbourOptions());
     regions = RegionsOfInfluence(nn);
-    std::mt19937 rng(7);
-    const int N = data.num_shapes, V = actor.NumVertices();
-    for (int f = 0; f < 32; ++f) {
-      const int a = rng() % N, b = rng() % N;
-      MatX3d x = actor.neutral.V;
-      for (int v = 0; v < V; ++v) {
-        const float* d = data.VertexDisplacements(v);
-        for (int i = 0; i < 3; ++i) x(v, i) += 0.5 * (d[a * 3 + i] + d[b * 3 + i]);
-      }
-      JawPose pose;
-      pose.open_deg = 0.5 * (actor.shapes[a].jaw.open_deg +
-                             actor.shapes[b].jaw.open_deg);
-      if (actor.jaw_rig) x = Skin(*actor.jaw_rig, pose, x);
-      frames.push_back(Bundles(x, f + 1));
-      jaw.push_back(pose);
-    }
+    const std::vector<DatasetEntry> plan = PlanDataset(model, synth);
+    TruthFramesOptions o;
+    o.kind = "combos";
+    o.frames = 24;
+    o.seed = 11;
+    combos = MakeTruthFrames(model, actor.markers, plan, o);
+    o.kind = "performance";
+    o.frames = 48;
+    o.seed = 12;
+    performance = MakeTruthFrames(model, actor.markers, plan, o);
   }
   BundleFrame Bundles(const MatX3d& x, int frame) const {
     BundleFrame b;
@@ -50,12 +46,13 @@ struct Base {
     }
     return b;
   }
+  SynthActorOptions synth;
+  FaceModel model;
   Actor actor;
   ShapeData data;
   NaturalNeighbourWeights nn;
   std::vector<std::vector<int>> regions;
-  std::vector<BundleFrame> frames;
-  std::vector<JawPose> jaw;
+  TruthFrames combos, performance;
 };
 
 Base& GetBase() {
@@ -68,18 +65,37 @@ struct Variant {
   ShapeIndex index;
   std::unique_ptr<LgiSolver> solver;
   double verification_error = 0.0;
+  double combos_mean = 0.0, performance_mean = 0.0;  // mean vertex error (mm)
   int64_t tets = 0;
 };
 
-Variant& GetVariant(int quality_milli, int max_edge_mm) {
-  static std::map<std::pair<int, int>, std::unique_ptr<Variant>> variants;
-  auto& slot = variants[{quality_milli, max_edge_mm}];
+// Mean over frames and vertices of |solve - truth| (mm), the sequence solved
+// in order (so the temporal preference sees the previous frame).
+double MeanError(const LgiSolver& solver, const TruthFrames& t) {
+  std::vector<JawPose> jaw;
+  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  const SolveResult r = solver.SolveSequence(t.bundles, jaw);
+  double sum = 0;
+  for (size_t f = 0; f < t.positions.size(); ++f) {
+    sum += (r.meshes[f] - t.positions[f]).rowwise().norm().mean();
+  }
+  return sum / t.positions.size();
+}
+
+Variant& GetVariant(int quality_milli, int max_edge_mm, int grid_max_cells,
+                    int entries_per_element) {
+  static std::map<std::tuple<int, int, int, int>, std::unique_ptr<Variant>>
+      variants;
+  auto& slot = variants[{quality_milli, max_edge_mm, grid_max_cells,
+                         entries_per_element}];
   if (slot) return *slot;
   Base& base = GetBase();
   slot = std::make_unique<Variant>();
   Variant& v = *slot;
   v.options.min_tet_quality = quality_milli / 1000.0;
   v.options.max_edge_mm = max_edge_mm;
+  v.options.grid_max_cells = grid_max_cells;
+  v.options.grid_entries_per_element = entries_per_element;
   v.index = BuildShapeIndex(base.actor, base.data, base.regions, v.options);
   for (const auto& b : v.index.bundles) v.tets += b.stats().tets_kept;
   v.solver = std::make_unique<LgiSolver>(base.actor.neutral, base.data,
@@ -93,19 +109,25 @@ Variant& GetVariant(int quality_milli, int max_edge_mm) {
     const double err = (x - truth).rowwise().norm().maxCoeff();
     v.verification_error = std::max(v.verification_error, err);
   }
+  v.combos_mean = MeanError(*v.solver, base.combos);
+  v.performance_mean = MeanError(*v.solver, base.performance);
   return v;
 }
 
+// One frame of held-out random combinations (synth/truth_frames.h, kind
+// combos): query, choice and blend.
 void BM_SolveFrame(benchmark::State& state) {
   Base& base = GetBase();
   Variant& v = GetVariant(static_cast<int>(state.range(0)),
-                          static_cast<int>(state.range(1)));
+                          static_cast<int>(state.range(1)),
+                          static_cast<int>(state.range(2)),
+                          static_cast<int>(state.range(3)));
+  const TruthFrames& t = base.combos;
   size_t f = 0;
-  FrameSolve previous;
   double candidates = 0, projected = 0, bundles = 0;
   for (auto _ : state) {
-    FrameSolve frame = v.solver->SolveFrame(
-        base.frames[f], base.jaw[f], previous.ok ? &previous : nullptr);
+    FrameSolve frame =
+        v.solver->SolveFrame(t.bundles[f], t.jaw[f].pose, nullptr);
     MatX3d mesh = v.solver->Blend(&frame);
     benchmark::DoNotOptimize(mesh.data());
     for (const auto& b : frame.bundles) {
@@ -113,26 +135,33 @@ void BM_SolveFrame(benchmark::State& state) {
       projected += b.status == BundleSolve::Status::kProjected;
       ++bundles;
     }
-    previous = std::move(frame);
-    f = (f + 1) % base.frames.size();
+    f = (f + 1) % t.bundles.size();
   }
   state.counters["tets_kept"] = static_cast<double>(v.tets);
+  state.counters["index_mb"] = v.index.MemoryBytes() / 1e6;
   state.counters["candidates_per_bundle"] = candidates / bundles;
   state.counters["projected_fraction"] = projected / bundles;
   state.counters["verification_max_mm"] = v.verification_error;
+  state.counters["combos_mean_mm"] = v.combos_mean;
+  state.counters["performance_mean_mm"] = v.performance_mean;
 }
 BENCHMARK(BM_SolveFrame)
     ->Unit(benchmark::kMillisecond)
-    ->Args({1, 0})
-    ->Args({100, 8})
-    ->Args({200, 6})
+    ->MeasureProcessCPUTime()  // CPU column: all threads
+    ->UseRealTime()
+    ->Args({1, 0, 24, 8})
+    ->Args({100, 8, 24, 8})
+    ->Args({100, 8, 64, 32})
+    ->Args({200, 6, 24, 8})
+    ->Args({200, 6, 64, 32})
     ->Repetitions(3)
     ->ReportAggregatesOnly(true);
 
 void BM_Blend(benchmark::State& state) {
   Base& base = GetBase();
-  Variant& v = GetVariant(100, 8);
-  FrameSolve frame = v.solver->SolveFrame(base.frames[0], base.jaw[0], nullptr);
+  Variant& v = GetVariant(100, 8, 24, 8);
+  FrameSolve frame = v.solver->SolveFrame(base.combos.bundles[0],
+                                          base.combos.jaw[0].pose, nullptr);
   for (auto _ : state) {
     MatX3d mesh = v.solver->Blend(&frame);
     benchmark::DoNotOptimize(mesh.data());

@@ -83,6 +83,9 @@ LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
   neighbours_.resize(K);
   site_disp_.resize(K);
   gram_.resize(K);
+  alt_point_.resize(K);
+  alt_shape_.resize(K);
+  alt_disp_.resize(K);
   ParallelFor(0, K, [&](int64_t k) {
     for (int j : nn.site_neighbours[k]) {
       if (j != k) neighbours_[k].push_back(j);
@@ -101,6 +104,23 @@ LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
     }
     gram_[k] = d * d.transpose();
     site_disp_[k] = std::move(d);
+    for (int i = 0; i < P; ++i) {
+      for (int r : index.represented[k][i]) {
+        if (r == b.point_shapes()[i]) continue;
+        alt_point_[k].push_back(i);
+        alt_shape_[k].push_back(r);
+      }
+    }
+    const int A = static_cast<int>(alt_point_[k].size());
+    alt_disp_[k] = Eigen::MatrixXd::Zero(A, 3 * J);
+    for (int a = 0; a < A; ++a) {
+      const int r = alt_shape_[k][a];
+      if (r < 0) continue;
+      for (int jj = 0; jj < J; ++jj) {
+        alt_disp_[k].block<1, 3>(a, 3 * jj) =
+            data.SiteDisplacement(r, neighbours_[k][jj]).transpose();
+      }
+    }
   });
   std::vector<std::vector<std::pair<int, double>>> region(K);
   for (int v = 0; v < nn.weights.rows(); ++v) {
@@ -142,12 +162,17 @@ Vec3 LgiSolver::Predict(int k, const IndexCandidate& candidate, int j) const {
 }
 
 void LgiSolver::Assign(int k, const IndexCandidate& candidate, double cost,
-                       BundleSolve* out) const {
+                       BundleSolve* out, int representative) const {
   const BundleIndex& b = index_.bundles[k];
   out->simplex = candidate.simplex;
   out->cost = cost;
   out->corner_shapes.clear();
   out->weights.clear();
+  if (representative != kNoRepresentative) {
+    out->corner_shapes.push_back(representative);
+    if (representative >= 0) out->weights.emplace_back(representative, 1.0);
+    return;
+  }
   const CloudSimplex& s = b.simplices()[candidate.simplex];
   for (int i = 0; i < s.size; ++i) {
     const int shape = b.point_shapes()[s.corner[i]];
@@ -208,6 +233,8 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
 
   std::vector<std::vector<IndexCandidate>> ties(K);
   std::vector<std::vector<double>> tie_costs(K);
+  std::vector<std::vector<int>> tie_rep(K);
+  std::vector<int> chosen_rep(K, kNoRepresentative);
   std::vector<std::vector<int>> tie_shared(K);
   ParallelFor(0, K, [&](int64_t k) {
     if (!observed[k]) return;
@@ -262,6 +289,7 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     const Eigen::VectorXd g = disp * a;
     const double c0 = a.squaredNorm();
     std::vector<double> cost(q.candidates.size(), 0.0);
+    std::vector<int> rep(q.candidates.size(), kNoRepresentative);
     double best = std::numeric_limits<double>::infinity();
     for (size_t ci = 0; ci < q.candidates.size(); ++ci) {
       const IndexCandidate& cand = q.candidates[ci];
@@ -275,7 +303,30 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
           e += wi * cand.weights[l] * gram(s.corner[i], s.corner[l]);
         }
       }
-      e = std::max(e, 0.0) + cand.distance * cand.distance;
+      e = std::max(e, 0.0);
+      // On one cloud point: any shape the point stands for may be the one
+      // observed (verification of a merged or pruned shape depends on it).
+      int on_point = -1;
+      for (int i = 0; i < s.size; ++i) {
+        if (cand.weights[i] >= 1.0 - 1e-9) on_point = s.corner[i];
+      }
+      if (on_point >= 0) {
+        for (size_t ai = 0; ai < alt_point_[k].size(); ++ai) {
+          if (alt_point_[k][ai] != on_point) continue;
+          double ea = 0;
+          for (int jj = 0; jj < J; ++jj) {
+            if (!observed[nbrs[jj]]) continue;
+            ea += (a.segment<3>(3 * jj) +
+                   alt_disp_[k].block<1, 3>(ai, 3 * jj).transpose())
+                      .squaredNorm();
+          }
+          if (ea < e - options_.tie_mm2) {
+            e = ea;
+            rep[ci] = alt_shape_[k][ai];
+          }
+        }
+      }
+      e += cand.distance * cand.distance;
       cost[ci] = e;
       best = std::min(best, e);
     }
@@ -322,6 +373,7 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     for (size_t c = 0; c < q.candidates.size(); ++c) {
       if (cost[c] <= best + options_.tie_mm2) {
         ties[k].push_back(q.candidates[c]);
+        tie_rep[k].push_back(rep[c]);
         tie_costs[k].push_back(cost[c]);
         tie_shared[k].push_back(shared[c]);
       }
@@ -329,7 +381,9 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     out.status = q.inside ? BundleSolve::Status::kInside
                           : BundleSolve::Status::kProjected;
     out.distance = q.distance;
-    Assign(static_cast<int>(k), q.candidates[chosen], cost[chosen], &out);
+    Assign(static_cast<int>(k), q.candidates[chosen], cost[chosen], &out,
+           rep[chosen]);
+    chosen_rep[k] = rep[chosen];
   });
 
   // Ties: a bundle whose position and neighbours cannot tell candidates
@@ -352,9 +406,9 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
   ParallelFor(0, K, [&](int64_t k) {
     if (ties[k].size() < 2) return;
     BundleSolve first_blend, probe;
-    Assign(static_cast<int>(k), ties[k][0], 0.0, &first_blend);
-    for (const IndexCandidate& cand : ties[k]) {
-      Assign(static_cast<int>(k), cand, 0.0, &probe);
+    Assign(static_cast<int>(k), ties[k][0], 0.0, &first_blend, tie_rep[k][0]);
+    for (size_t t = 0; t < ties[k].size(); ++t) {
+      Assign(static_cast<int>(k), ties[k][t], 0.0, &probe, tie_rep[k][t]);
       if (!same_blend(probe.weights, first_blend.weights)) {
         tied[k] = 1;
         return;
@@ -366,6 +420,10 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     const auto st = f.bundles[k].status;
     if (tied[k] || (st != BundleSolve::Status::kInside &&
                     st != BundleSolve::Status::kProjected)) {
+      continue;
+    }
+    if (chosen_rep[k] != kNoRepresentative) {
+      if (chosen_rep[k] >= 0) consensus[chosen_rep[k] + 1] += 1.0;
       continue;
     }
     const BundleIndex& b = index_.bundles[k];
@@ -397,6 +455,12 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
       for (int i = 0; i < s.size; ++i) {
         const double w = cand.weights[i];
         motion += w * point_motion_[k][s.corner[i]];
+        const int r = tie_rep[k][t];
+        if (r != kNoRepresentative) {
+          // On one point, standing for shape r.
+          if (r >= 0 && w > 0.5) score += consensus[r + 1];
+          continue;
+        }
         double support = 0;
         // The neutral carries no evidence ("nothing moved" is what most
         // bundles see of any local shape), so only shapes count.
@@ -418,7 +482,7 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
       }
     }
     Assign(static_cast<int>(k), ties[k][best_t], tie_costs[k][best_t],
-           &f.bundles[k]);
+           &f.bundles[k], tie_rep[k][best_t]);
   });
 
   // Missing bundles: the neighbours' weights, averaged by inverse squared

@@ -140,9 +140,13 @@ class LgiSolver {
   int NumBundles() const { return data_.num_bundles; }
 
  private:
-  // Sets out's choice (simplex, corner shapes, weights, cost).
+  // Sets out's choice (simplex, corner shapes, weights, cost). A candidate
+  // sitting on one cloud point may stand for another shape the point
+  // represents: `representative` (>= -1; -1 the neutral) then replaces the
+  // point's own shape; kNoRepresentative keeps the corners' shapes.
+  static constexpr int kNoRepresentative = -2;
   void Assign(int k, const IndexCandidate& candidate, double cost,
-              BundleSolve* out) const;
+              BundleSolve* out, int representative = kNoRepresentative) const;
 
   const TriMesh& neutral_;
   const ShapeData& data_;
@@ -158,6 +162,14 @@ class LgiSolver {
   std::vector<std::vector<int>> neighbours_;
   std::vector<Eigen::MatrixXd> site_disp_;
   std::vector<Eigen::MatrixXd> gram_;
+  // Per bundle, the other shapes a cloud point stands for (merged into it or
+  // pruned into the neutral: they agree with the point's shape over the
+  // bundle's region, not necessarily at the neighbours' sites). A candidate
+  // on that point is scored with whichever of them best explains the
+  // neighbours. alt_point_[k][a], alt_shape_[k][a], alt_disp_[k].row(a)
+  // (3J, as site_disp_).
+  std::vector<std::vector<int>> alt_point_, alt_shape_;
+  std::vector<Eigen::MatrixXd> alt_disp_;
   // Per bundle and cloud point: its shape's motion over the bundle's region,
   // sum_v lambda_k(v) |b*_n(v)| (mm), the last tie-breaker.
   std::vector<std::vector<double>> point_motion_;

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <tuple>
+#include <unordered_set>
 #include <utility>
 
 #include "core/error.h"
@@ -14,6 +16,7 @@ namespace hmc {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr float kInfF = std::numeric_limits<float>::infinity();
 
 struct CellRange {
   std::array<int, 3> lo, hi;
@@ -58,7 +61,76 @@ bool TetContains(const SimplexCorners& s, const Vec3& p, double tolerance,
   return true;
 }
 
+// Weights below `tolerance` become zero (the rest renormalised); returns
+// the candidate's support (its corners of non-zero weight), packed.
+// Candidates with the same support are the same point of the same face, so
+// the same blend: a bundle on an edge of its cloud lies in every
+// tetrahedron through that edge, and they must not all be scored.
+uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
+                    IndexCandidate* cand) {
+  double sum = 0;
+  for (int i = 0; i < s.size; ++i) {
+    if (cand->weights[i] < tolerance) cand->weights[i] = 0.0;
+    sum += cand->weights[i];
+  }
+  std::array<uint16_t, 4> support = {0xffff, 0xffff, 0xffff, 0xffff};
+  int n = 0;
+  for (int i = 0; i < s.size; ++i) {
+    cand->weights[i] /= sum;
+    if (cand->weights[i] > 0) support[n++] = s.corner[i];
+  }
+  std::sort(support.begin(), support.end());  // unused slots (0xffff) last
+  uint64_t key = 0;
+  for (uint16_t id : support) key = (key << 16) | id;
+  return key;
+}
+
+// Candidates in canonical form: sorted by simplex id, snapped, one per
+// support (the lowest id).
+void Canonicalize(const std::vector<CloudSimplex>& simplices,
+                  double tolerance, std::vector<IndexCandidate>* candidates) {
+  std::sort(candidates->begin(), candidates->end(),
+            [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
+  std::unordered_set<uint64_t> seen;
+  size_t kept = 0;
+  for (IndexCandidate& cand : *candidates) {
+    if (!seen.insert(SnapAndKey(simplices[cand.simplex], tolerance, &cand))
+             .second) {
+      continue;
+    }
+    (*candidates)[kept++] = cand;
+  }
+  candidates->resize(kept);
+}
+
 }  // namespace
+
+void BundleIndex::ComputeBoxes() {
+  boxes_.resize(simplices_.size());
+  for (size_t i = 0; i < simplices_.size(); ++i) {
+    const CloudSimplex& s = simplices_[i];
+    for (int a = 0; a < 3; ++a) {
+      double lo = points_(s.corner[0], a), hi = lo;
+      for (int k = 1; k < s.size; ++k) {
+        lo = std::min(lo, points_(s.corner[k], a));
+        hi = std::max(hi, points_(s.corner[k], a));
+      }
+      // Rounded outwards, so the float box holds the double one.
+      boxes_[i][a] = std::nextafter(static_cast<float>(lo), -kInfF);
+      boxes_[i][3 + a] = std::nextafter(static_cast<float>(hi), kInfF);
+    }
+  }
+}
+
+double BundleIndex::BoxDistance(int64_t s, const Vec3& p) const {
+  const std::array<float, 6>& b = boxes_[s];
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double out = std::max({double(b[a]) - p[a], p[a] - double(b[3 + a]), 0.0});
+    d2 += out * out;
+  }
+  return std::sqrt(d2);
+}
 
 SimplexCorners BundleIndex::Corners(int simplex) const {
   const CloudSimplex& s = simplices_[simplex];
@@ -178,6 +250,7 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
   st.tets_kept = index.num_tets_;
   st.triangles_kept = triangles;
   st.edges_kept = edges;
+  index.ComputeBoxes();
   index.BuildGrid(options);
   return index;
 }
@@ -279,7 +352,7 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
   stats_.grid_entries = static_cast<int64_t>(cell_items_.size());
   stats_.memory_bytes = static_cast<int64_t>(
       points_.size() * sizeof(double) + point_shapes_.size() * sizeof(int) +
-      simplices_.size() * sizeof(CloudSimplex) +
+      simplices_.size() * (sizeof(CloudSimplex) + sizeof(boxes_[0])) +
       cell_start_.size() * sizeof(uint32_t) +
       cell_items_.size() * sizeof(uint32_t));
 }
@@ -294,6 +367,30 @@ std::array<int, 3> BundleIndex::CellOf(const Vec3& p) const {
   return c;
 }
 
+void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
+                                const Vec3& p, const IndexOptions& options,
+                                std::vector<IndexCandidate>* out) const {
+  // Ids ascend, so the first candidate of a support is the one Canonicalize
+  // would keep, and the tetrahedra come before the lower-dimensional
+  // simplices, which are skipped (all but the points) once a tetrahedron
+  // holds p.
+  thread_local std::unordered_set<uint64_t> seen;
+  seen.clear();
+  const uint32_t first_point = static_cast<uint32_t>(simplices_.size() - NumPoints());
+  for (const uint32_t* it = begin; it != end; ++it) {
+    if (*it >= num_tets_ && *it < first_point && !out->empty()) {
+      it = std::lower_bound(it, end, first_point);
+      if (it == end) break;
+    }
+    IndexCandidate cand;
+    if (!Contains(*it, p, options, &cand)) continue;
+    if (seen.insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand))
+            .second) {
+      out->push_back(cand);
+    }
+  }
+}
+
 IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
                               const IndexOptions& options) const {
   IndexQuery result;
@@ -304,17 +401,12 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
       visit(cell_items_[k]);
     }
   };
-  // Inside: the simplices listed in p's cell that contain it (tetrahedra
-  // by their barycentrics; the lower-dimensional ones, kept where no
-  // tetrahedron covers them, by distance).
-  items_of(c[0], c[1], c[2], [&](uint32_t s) {
-    IndexCandidate cand;
-    if (Contains(s, p, options, &cand)) result.candidates.push_back(cand);
-  });
+  const size_t cell = (static_cast<size_t>(c[2]) * grid_n_[1] + c[1]) * grid_n_[0] + c[0];
+  CollectInside(cell_items_.data() + cell_start_[cell],
+                cell_items_.data() + cell_start_[cell + 1], p, options,
+                &result.candidates);
   if (!result.candidates.empty()) {
     result.inside = true;
-    std::sort(result.candidates.begin(), result.candidates.end(),
-              [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
     return result;
   }
   // Outside: grow shells of cells around p's (clamped) cell until no
@@ -337,6 +429,7 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
           }
           items_of(x, y, z, [&](uint32_t s) {
             if (!marks.Visit(s)) return;
+            if (BoxDistance(s, p) > best + keep) return;
             const ClosestPoint cp =
                 ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
             if (cp.distance > best + keep) return;
@@ -366,8 +459,7 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   for (const IndexCandidate& cand : found) {
     if (cand.distance <= best + keep) result.candidates.push_back(cand);
   }
-  std::sort(result.candidates.begin(), result.candidates.end(),
-            [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
+  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
@@ -376,14 +468,23 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
 bool BundleIndex::Contains(int64_t s, const Vec3& p,
                            const IndexOptions& options,
                            IndexCandidate* candidate) const {
+  if (BoxDistance(s, p) > options.on_data_mm) return false;
   if (s < num_tets_) {
     if (!TetContains(Corners(s), p, options.inside_tolerance,
                      &candidate->weights)) {
       return false;
     }
   } else {
+    const SimplexCorners corners = Corners(s);
+    if (corners.size == 3) {
+      // Off the triangle's plane: no closest-point search needed.
+      const Vec3 n = (corners.x[1] - corners.x[0]).cross(corners.x[2] - corners.x[0]);
+      if (std::abs(n.dot(p - corners.x[0])) > options.on_data_mm * n.norm()) {
+        return false;
+      }
+    }
     const ClosestPoint cp =
-        ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+        ClosestPointOnSimplex(corners, p, options.inside_tolerance);
     if (cp.distance > options.on_data_mm) return false;
     candidate->weights = cp.weights;
   }
@@ -395,10 +496,10 @@ bool BundleIndex::Contains(int64_t s, const Vec3& p,
 IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
                                         const IndexOptions& options) const {
   IndexQuery result;
-  for (int64_t s = 0; s < static_cast<int64_t>(simplices_.size()); ++s) {
-    IndexCandidate cand;
-    if (Contains(s, p, options, &cand)) result.candidates.push_back(cand);
-  }
+  std::vector<uint32_t> all_ids(simplices_.size());
+  std::iota(all_ids.begin(), all_ids.end(), 0u);
+  CollectInside(all_ids.data(), all_ids.data() + all_ids.size(), p, options,
+                &result.candidates);
   if (!result.candidates.empty()) {
     result.inside = true;
     return result;
@@ -420,6 +521,7 @@ IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
   for (const auto& cand : all) {
     if (cand.distance <= best + keep) result.candidates.push_back(cand);
   }
+  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
@@ -486,6 +588,7 @@ BundleIndex BundleIndex::Read(std::istream& in) {
     ok = s.size == 1 && s.corner[0] == i;
   }
   if (!ok) throw InputError("index cache: inconsistent bundle index");
+  index.ComputeBoxes();
   return index;
 }
 

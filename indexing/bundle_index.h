@@ -40,7 +40,9 @@ struct IndexCandidate {
 struct IndexQuery {
   bool inside = false;    // some simplex contains the query (within tolerance)
   double distance = 0.0;  // distance to the data (0 when inside; mm)
-  std::vector<IndexCandidate> candidates;  // sorted by simplex id
+  std::vector<IndexCandidate> candidates;  // sorted by simplex id; one per
+                                           // support (corners of non-zero
+                                           // weight): the lowest id
 };
 
 struct BundleIndexStats {
@@ -63,10 +65,12 @@ class BundleIndex {
   static BundleIndex Build(const MatX3d& points, std::vector<int> point_shapes,
                            const IndexOptions& options);
 
-  // Every simplex containing p with its convex weights; when none does, the
-  // simplices whose closest point is within `outside_slack_mm` of the
-  // closest distance to the union of simplices (each with its closest point
-  // and weights).
+  // Every simplex containing p with its convex weights, one per support;
+  // the triangles and edges only when no tetrahedron contains p (they stand
+  // in where tetrahedra do not reach; the points are always tested, so a
+  // dataset point stays exact). When none contains p: the simplices whose
+  // closest point is within `outside_slack_mm` of the closest distance to
+  // the union of simplices (each with its closest point and weights).
   IndexQuery Query(const Vec3& p, double outside_slack_mm,
                    const IndexOptions& options) const;
 
@@ -96,11 +100,21 @@ class BundleIndex {
 
  private:
   void BuildGrid(const IndexOptions& options);
+  void ComputeBoxes();
+  // The inside candidates among simplices [begin, end) (ascending ids).
+  void CollectInside(const uint32_t* begin, const uint32_t* end, const Vec3& p,
+                     const IndexOptions& options,
+                     std::vector<IndexCandidate>* out) const;
+  // Distance from p to simplex s's bounding box: a lower bound of its
+  // distance to the simplex, so most simplices of a cell are rejected
+  // without their barycentrics.
+  double BoxDistance(int64_t s, const Vec3& p) const;
   std::array<int, 3> CellOf(const Vec3& p) const;
 
   MatX3d points_;
   std::vector<int> point_shapes_;
   std::vector<CloudSimplex> simplices_;  // tets first, then lower dimensions
+  std::vector<std::array<float, 6>> boxes_;  // per simplex: min xyz, max xyz
   int64_t num_tets_ = 0;
   Vec3 grid_origin_ = Vec3::Zero();
   double cell_size_ = 1.0;

@@ -1,5 +1,6 @@
 #include "indexing/bundle_index.h"
 
+#include <algorithm>
 #include <random>
 #include <set>
 #include <sstream>
@@ -10,6 +11,16 @@
 
 namespace hmc {
 namespace {
+
+// The index's mechanics (queries, containment, projection), independent of
+// the default pruning, which is tuned for faces (edges <= 6 mm would leave
+// these 5-10 mm test clouds without tetrahedra).
+IndexOptions MechanicsOptions() {
+  IndexOptions options;
+  options.min_tet_quality = 1e-3;
+  options.max_edge_mm = 0.0;
+  return options;
+}
 
 BundleIndex RandomIndex(int seed, int points, const IndexOptions& options) {
   std::mt19937 rng(seed);
@@ -34,7 +45,7 @@ std::set<int> Ids(const IndexQuery& q) {
 TEST(BundleIndex, GridQueryMatchesBruteForce) {
   for (int seed = 1; seed <= 4; ++seed) {
     for (int cells : {1, 5, 16}) {
-      IndexOptions options;
+      IndexOptions options = MechanicsOptions();
       options.grid_max_cells = cells;
       options.min_tet_quality = 0.05;
       const BundleIndex index = RandomIndex(seed, 7 + 2 * seed, options);
@@ -62,11 +73,12 @@ TEST(BundleIndex, GridQueryMatchesBruteForce) {
 }
 
 // At the corners, edge midpoints and face centroids of every kept
-// tetrahedron, the query finds that tetrahedron with convex weights that
-// reproduce the point.
+// tetrahedron, the query finds that point of the tetrahedron's face, with
+// convex weights that reproduce it, once: no two candidates have the same
+// corners of non-zero weight.
 TEST(BundleIndex, RobustAtFacesEdgesAndCorners) {
   for (int seed = 1; seed <= 3; ++seed) {
-    IndexOptions options;
+    IndexOptions options = MechanicsOptions();
     const BundleIndex index = RandomIndex(seed, 8, options);
     int tested = 0;
     for (int s = 0; s < static_cast<int>(index.simplices().size()); ++s) {
@@ -88,6 +100,7 @@ TEST(BundleIndex, RobustAtFacesEdgesAndCorners) {
         const IndexQuery q = index.Query(p, 0.0, options);
         ASSERT_TRUE(q.inside);
         bool found = false;
+        std::set<std::vector<int>> supports;
         for (const auto& cand : q.candidates) {
           const SimplexCorners cc = index.Corners(cand.simplex);
           Vec3 x = Vec3::Zero();
@@ -99,7 +112,23 @@ TEST(BundleIndex, RobustAtFacesEdgesAndCorners) {
           }
           EXPECT_NEAR(sum, 1.0, 1e-12);
           EXPECT_LT((x - p).norm(), 1e-9);
-          found |= cand.simplex == s;
+          // One candidate per support: the one for p's face of s has all
+          // its non-zero weights on corners of s.
+          const CloudSimplex& cs = index.simplices()[cand.simplex];
+          const CloudSimplex& ss = index.simplices()[s];
+          bool on_s = true;
+          for (int i = 0; i < cs.size; ++i) {
+            if (cand.weights[i] == 0.0) continue;
+            on_s &= std::count(ss.corner.begin(), ss.corner.begin() + ss.size,
+                               cs.corner[i]) > 0;
+          }
+          found |= on_s;
+          std::vector<int> support;
+          for (int i = 0; i < cs.size; ++i) {
+            if (cand.weights[i] > 0) support.push_back(cs.corner[i]);
+          }
+          std::sort(support.begin(), support.end());
+          EXPECT_TRUE(supports.insert(support).second) << "duplicate support";
         }
         EXPECT_TRUE(found) << "simplex " << s;
         ++tested;
@@ -113,7 +142,7 @@ TEST(BundleIndex, RobustAtFacesEdgesAndCorners) {
 // simplices, found by brute force over all of them.
 TEST(BundleIndex, OutsideLandsOnClosestPoint) {
   for (int seed = 1; seed <= 4; ++seed) {
-    IndexOptions options;
+    IndexOptions options = MechanicsOptions();
     const BundleIndex index = RandomIndex(seed, 9, options);
     std::mt19937 rng(seed);
     std::normal_distribution<double> g(0.0, 1.0);
@@ -136,7 +165,7 @@ TEST(BundleIndex, OutsideLandsOnClosestPoint) {
 }
 
 TEST(BundleIndex, LowDimensionalClouds) {
-  IndexOptions options;
+  IndexOptions options = MechanicsOptions();
   // Two points: a segment; one point: itself.
   MatX3d two(2, 3);
   two << 0, 0, 0, 10, 0, 0;
@@ -157,7 +186,7 @@ TEST(BundleIndex, LowDimensionalClouds) {
 }
 
 TEST(BundleIndex, PruningRespectsQualityAndExtent) {
-  IndexOptions options;
+  IndexOptions options = MechanicsOptions();
   options.min_tet_quality = 0.2;
   options.max_edge_mm = 12.0;
   const BundleIndex index = RandomIndex(3, 10, options);
@@ -177,7 +206,7 @@ TEST(BundleIndex, PruningRespectsQualityAndExtent) {
 }
 
 TEST(BundleIndex, WriteReadRoundTrip) {
-  IndexOptions options;
+  IndexOptions options = MechanicsOptions();
   const BundleIndex index = RandomIndex(5, 9, options);
   std::stringstream buffer;
   index.Write(buffer);

@@ -16,11 +16,11 @@ struct IndexOptions {
                                 // marker's is dropped from its cloud when it
                                 // moves the region by at most this (mm)
   // Tetrahedra (step 2).
-  double min_tet_quality = 1e-3;  // 6 sqrt(2) volume / longest edge^3 below
-                                  // this: too thin, pruned (0..1)
+  double min_tet_quality = 0.2;  // 6 sqrt(2) volume / longest edge^3 below
+                                 // this: too thin, pruned (0..1)
   double min_triangle_quality = 1e-3;  // same for the triangles kept for flat
                                        // clouds (4 area / sqrt(3) edge^2)
-  double max_edge_mm = 0.0;  // simplices with a longer edge are pruned as too
+  double max_edge_mm = 6.0;  // simplices with a longer edge are pruned as too
                              // large an extent (mm; 0 = no bound)
   // Grid (step 3).
   int grid_max_cells = 24;  // cells along the longest side of a cloud's box
