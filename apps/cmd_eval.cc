@@ -23,6 +23,7 @@
 #include <string>
 
 #include "apps/command.h"
+#include "blending/eval_metrics.h"
 #include "core/actor.h"
 #include "core/color_map.h"
 #include "core/error.h"
@@ -89,24 +90,12 @@ struct EvalCommand {
   EvalOptions options;
 };
 
-struct FrameEval {
-  int frame = 0;
-  ErrorStats face, all, bundle;
-  double detail_face = 0, detail_all = 0;  // mean |delta_T - delta_R| (mm)
-};
-
 nlohmann::json StatsJson(const ErrorStats& s) {
   return {{"count", s.count},
           {"mean_mm", s.mean},
           {"rms_mm", s.rms},
           {"p95_mm", s.p95},
           {"max_mm", s.max}};
-}
-
-double Mean(const std::vector<double>& v) {
-  double sum = 0;
-  for (double x : v) sum += x;
-  return v.empty() ? 0.0 : sum / v.size();
 }
 
 std::vector<int> ParseFrames(const std::string& text) {
@@ -165,8 +154,8 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
   const Actor actor = LoadActor(cmd.actor_dir);
   const TriMesh& neutral = actor.neutral;
   const int V = neutral.NumVertices();
-  const MeshSequence truth = ReadMeshSequence(cmd.truth, &neutral);
-  const MeshSequence recon = ReadMeshSequence(cmd.recon, &neutral);
+  MeshSequence truth = ReadMeshSequence(cmd.truth, &neutral);
+  MeshSequence recon = ReadMeshSequence(cmd.recon, &neutral);
   for (const auto* seq : {&truth, &recon}) {
     const std::string& path = seq == &truth ? cmd.truth : cmd.recon;
     for (const MatX3d& x : seq->frames) {
@@ -196,30 +185,11 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
                                 truth.start_frame +
                                     static_cast<int>(truth.frames.size()) - 1));
   }
-  std::map<int, BundleFrame> bundles_by_frame;
-  if (!cmd.bundles.empty()) {
-    for (BundleFrame& b : ReadBundlesCsv(cmd.bundles)) {
-      bundles_by_frame[b.frame] = std::move(b);
-    }
-  }
+  std::vector<BundleFrame> bundle_rows;
+  if (!cmd.bundles.empty()) bundle_rows = ReadBundlesCsv(cmd.bundles);
 
   StageTimer timer("eval");
-  std::vector<SurfacePoint> sites;
-  for (const Marker& m : actor.markers) sites.push_back(m.point);
-  const std::vector<uint8_t> face =
-      FaceRegionMask(neutral, sites, cmd.options.metrics.face_radius_mm);
-  int face_vertices = 0;
-  for (uint8_t m : face) face_vertices += m;
-  const Eigen::SparseMatrix<double> laplacian = UniformLaplacian(neutral.F, V);
-
   const int F = static_cast<int>(pairs.size());
-  std::vector<FrameEval> evals(F);
-  std::vector<double> pool_face, pool_all, pool_bundle, pool_detail_face,
-      pool_detail_all;
-  pool_face.reserve(static_cast<size_t>(face_vertices) * F);
-  pool_all.reserve(static_cast<size_t>(V) * F);
-  Eigen::VectorXd error_sum = Eigen::VectorXd::Zero(V);
-  std::map<int, Eigen::VectorXd> kept_errors;  // for the pictures
   std::vector<int> picture_frames;
   if (!cmd.out.empty()) {
     if (!cmd.frames.empty()) {
@@ -240,65 +210,21 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
         std::unique(picture_frames.begin(), picture_frames.end()),
         picture_frames.end());
   }
-  Progress progress("eval", F);
+  // The matched frames, in frame order (moved out of the sequences).
+  std::vector<MatX3d> truth_frames(F), recon_frames(F);
   for (int f = 0; f < F; ++f) {
-    const MatX3d& t = truth.frames[pairs[f].first];
-    const MatX3d& r = recon.frames[pairs[f].second];
-    FrameEval& e = evals[f];
-    e.frame = numbers[f];
-    const Eigen::VectorXd err = VertexErrors(t, r);
-    error_sum += err;
-    std::vector<double> face_err = Select(err, face);
-    std::vector<double> all_err = Select(err, {});
-    pool_face.insert(pool_face.end(), face_err.begin(), face_err.end());
-    pool_all.insert(pool_all.end(), all_err.begin(), all_err.end());
-    e.face = ComputeErrorStats(&face_err);
-    e.all = ComputeErrorStats(&all_err);
-    const Eigen::VectorXd detail = DetailErrors(laplacian, t, r);
-    const std::vector<double> detail_face = Select(detail, face);
-    e.detail_face = Mean(detail_face);
-    e.detail_all = detail.mean();
-    pool_detail_face.insert(pool_detail_face.end(), detail_face.begin(),
-                            detail_face.end());
-    pool_detail_all.insert(pool_detail_all.end(), detail.data(),
-                           detail.data() + detail.size());
-    // Bundle targets: the truth's surface points, or the given bundles.
-    MatX3d targets(sites.size(), 3);
-    if (cmd.bundles.empty()) {
-      for (size_t k = 0; k < sites.size(); ++k) {
-        targets.row(k) =
-            EvaluateSurfacePoint(sites[k], neutral.F, t).transpose();
-      }
-    } else {
-      targets.setConstant(std::numeric_limits<double>::quiet_NaN());
-      const auto it = bundles_by_frame.find(e.frame);
-      if (it != bundles_by_frame.end()) {
-        for (size_t k = 0; k < sites.size(); ++k) {
-          const auto b = it->second.bundles.find(actor.markers[k].name);
-          if (b != it->second.bundles.end())
-            targets.row(k) = b->second.transpose();
-        }
-      }
-    }
-    std::vector<double> residuals =
-        BundleResiduals(neutral.F, sites, r, targets);
-    pool_bundle.insert(pool_bundle.end(), residuals.begin(), residuals.end());
-    e.bundle = ComputeErrorStats(&residuals);
-    if (std::binary_search(picture_frames.begin(), picture_frames.end(),
-                           e.frame)) {
-      kept_errors[e.frame] = err;
-    }
-    progress.Advance();
+    truth_frames[f] = std::move(truth.frames[pairs[f].first]);
+    recon_frames[f] = std::move(recon.frames[pairs[f].second]);
   }
-  progress.Finish();
-  const ErrorStats overall_face = ComputeErrorStats(&pool_face);
-  const ErrorStats overall_all = ComputeErrorStats(&pool_all);
-  const ErrorStats overall_bundle = ComputeErrorStats(&pool_bundle);
-  const double overall_detail_face = Mean(pool_detail_face);
-  const double overall_detail_all = Mean(pool_detail_all);
+  const SequenceEvaluator evaluator(actor, cmd.options.metrics);
+  const SequenceMetrics metrics =
+      evaluator.Evaluate(truth_frames, recon_frames, numbers,
+                         cmd.bundles.empty() ? nullptr : &bundle_rows);
+  const std::vector<FrameMetrics>& evals = metrics.per_frame;
+  const int face_vertices = metrics.face_vertices;
 
   nlohmann::json per_frame = nlohmann::json::array();
-  for (const FrameEval& e : evals) {
+  for (const FrameMetrics& e : evals) {
     per_frame.push_back({{"frame", e.frame},
                          {"face", StatsJson(e.face)},
                          {"all", StatsJson(e.all)},
@@ -318,11 +244,14 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
         {"vertices", face_vertices}}},
       {"detail", "uniform Laplacian coordinates"},
       {"overall",
-       {{"face", StatsJson(overall_face)},
-        {"all", StatsJson(overall_all)},
-        {"bundle", StatsJson(overall_bundle)},
-        {"detail_face_mm", overall_detail_face},
-        {"detail_all_mm", overall_detail_all}}},
+       {{"face", StatsJson(metrics.face)},
+        {"all", StatsJson(metrics.all)},
+        {"bundle", StatsJson(metrics.bundle)},
+        {"detail_face_mm", metrics.detail_face},
+        {"detail_all_mm", metrics.detail_all},
+        {"flicker_face_mm_per_frame2", metrics.flicker_face.mean},
+        {"flicker_all_mm_per_frame2", metrics.flicker_all.mean},
+        {"flicker_frames_used", metrics.flicker_all.frames_used}}},
       {"per_frame", per_frame}};
 
   if (!cmd.out.empty()) {
@@ -333,7 +262,7 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
         "frame,face_mean_mm,face_rms_mm,face_p95_mm,face_max_mm,all_mean_mm,"
         "all_rms_mm,all_p95_mm,all_max_mm,bundle_mean_mm,bundle_max_mm,"
         "detail_face_mm,detail_all_mm\n";
-    for (const FrameEval& e : evals) {
+    for (const FrameMetrics& e : evals) {
       csv += fmt::format(
           "{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},"
           "{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n",
@@ -344,23 +273,25 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
     WriteFileAtomic(out / "per_frame.csv", csv);
     const int uv = cmd.options.uv_resolution;
     WriteExr(out / "error_uv_mean.exr",
-             UvMap(neutral, error_sum / static_cast<double>(F), uv));
+             UvMap(neutral, metrics.mean_vertex_error, uv));
     double hi = cmd.options.heat_max_mm;
     if (hi <= 0) {
-      for (const FrameEval& e : evals) hi = std::max(hi, e.face.p95);
+      for (const FrameMetrics& e : evals) hi = std::max(hi, e.face.p95);
       if (hi <= 0) hi = 1e-3;
     }
     MeshRenderOptions ro;
     ro.width = cmd.options.image_width;
     ro.height = cmd.options.image_height;
-    for (const auto& [number, err] : kept_errors) {
+    for (const int number : picture_frames) {
       const int f = static_cast<int>(
           std::find(numbers.begin(), numbers.end(), number) - numbers.begin());
+      const Eigen::VectorXd err =
+          VertexErrors(truth_frames[f], recon_frames[f]);
       WriteExr(out / fmt::format("error_uv_{:06d}.exr", number),
                UvMap(neutral, err, uv));
       TriMesh t = neutral, r = neutral;
-      t.V = truth.frames[pairs[f].first];
-      r.V = recon.frames[pairs[f].second];
+      t.V = truth_frames[f];
+      r.V = recon_frames[f];
       Eigen::Matrix<double, 2, 3> box = BoundingBox(t.V);
       const Eigen::Matrix<double, 2, 3> rbox = BoundingBox(r.V);
       box.row(0) = box.row(0).cwiseMin(rbox.row(0));
@@ -390,14 +321,23 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
       fmt::print("{:<14}{:>10.4f}{:>10.4f}{:>10.4f}{:>10.4f}\n", name, s.mean,
                  s.rms, s.p95, s.max);
     };
-    row("face", overall_face);
-    row("all", overall_all);
-    row("bundle", overall_bundle);
+    row("face", metrics.face);
+    row("all", metrics.all);
+    row("bundle", metrics.bundle);
     fmt::print("detail (mean |dL|, mm): face {:.4f}, all {:.4f}\n",
-               overall_detail_face, overall_detail_all);
+               metrics.detail_face, metrics.detail_all);
+    if (metrics.flicker_all.frames_used > 0) {
+      fmt::print(
+          "flicker (mean |e(t+1) - 2e(t) + e(t-1)|, mm/frame^2): face {:.4f}, "
+          "all {:.4f} ({} frames)\n",
+          metrics.flicker_face.mean, metrics.flicker_all.mean,
+          metrics.flicker_all.frames_used);
+    } else {
+      fmt::print("flicker: n/a (fewer than 3 consecutive frames)\n");
+    }
   }
   spdlog::info("eval: {} frames, face mean {:.4f} mm, all mean {:.4f} mm", F,
-               overall_face.mean, overall_all.mean);
+               metrics.face.mean, metrics.all.mean);
   return 0;
 }
 

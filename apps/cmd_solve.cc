@@ -1,9 +1,12 @@
 // `hmc solve --actor DIR --bundles bundles.csv [--jaw jaw.csv] --out OUT
-// [--diagnostics FILE.json]`: local geometric indexing per bundle and frame,
-// sewn with natural-neighbour weights (DESIGN.md section 4). OUT by
-// extension: .pc2, .mdd, .usda, or a folder of OBJ frames. The index is
-// loaded from the actor's cache when valid, else built (and cached). Writes
-// options_used.yaml next to OUT.
+// [--method NAME] [--diagnostics FILE.json]`: meshes from bundles. The
+// default method `lgi` is local geometric indexing per bundle and frame,
+// sewn with natural-neighbour weights (DESIGN.md section 4); the others
+// (blendshape, blendshape-bounded, interp, lgi-rbf: docs/baselines.md) take
+// the same inputs and write the same outputs (blending/solve_method.h). OUT
+// by extension: .pc2, .mdd, .usda, or a folder of OBJ frames. The lgi index
+// is loaded from the actor's cache when valid, else built (and cached).
+// Writes options_used.yaml (with the method) next to OUT.
 //
 // Frames run from the first to the last frame number of bundles.csv; a frame
 // without rows, with too few bundles or without a jaw pose (when --jaw is
@@ -19,6 +22,7 @@
 #include "apps/command.h"
 #include "blending/lgi_solver.h"
 #include "blending/solve_index_cache.h"
+#include "blending/solve_method.h"
 #include "core/actor.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
@@ -29,14 +33,16 @@ namespace hmc {
 namespace {
 
 struct SolveCommandOptions {
-  LgiBuildOptions build;
-  SolveOptions solve;
+  std::string method = "lgi";  // lgi | blendshape | blendshape-bounded |
+                               // interp | lgi-rbf
+  MethodOptions methods;
 
   void Register(OptionFields* fields) {
-    build.Register(fields);
-    solve.Register(fields);
+    fields->Add("method", &method,
+                "solve method: " + SolveMethodList());
+    methods.Register(fields);
   }
-  bool Check() const { return build.Check() && solve.Check(); }
+  bool Check() const { return methods.Check(); }
 };
 
 struct SolveCommand {
@@ -60,8 +66,8 @@ const char* StatusName(BundleSolve::Status status) {
   return "unused";
 }
 
-nlohmann::json Diagnostics(const Actor& actor, const LgiModel& model,
-                           const SolveResult& result) {
+nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
+                           const LgiModel* model, const SolveResult& result) {
   const SolveSummary& s = result.summary;
   nlohmann::json frames = nlohmann::json::array();
   for (const FrameSolve& f : result.frames) {
@@ -98,9 +104,14 @@ nlohmann::json Diagnostics(const Actor& actor, const LgiModel& model,
                       {"unknown_markers", f.unknown_markers},
                       {"bundles", bundles}});
   }
+  nlohmann::json index = nullptr;
+  if (model) {
+    index = {{"from_cache", model->from_cache},
+             {"build_seconds", model->build_seconds}};
+  }
   return {{"actor", actor.name},
-          {"index", {{"from_cache", model.from_cache},
-                     {"build_seconds", model.build_seconds}}},
+          {"method", method},
+          {"index", index},
           {"summary",
            {{"frames", s.frames},
             {"bad_frames", s.bad_frames},
@@ -114,6 +125,7 @@ nlohmann::json Diagnostics(const Actor& actor, const LgiModel& model,
 int Run(SolveCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "solve");
+  CheckSolveMethod(cmd.options.method, "--method");
   const Actor actor = LoadActor(cmd.actor_dir);
   const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
   if (rows.empty()) {
@@ -155,13 +167,11 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
     }
   }
 
-  StageTimer timer("solve");
-  const LgiModel model =
-      LoadOrBuildLgiModel(actor, cmd.options.build.index, cmd.options.build.nn,
-                          /*write_cache=*/!cmd.no_cache_write);
-  const LgiSolver solver(actor.neutral, model.data, model.index, model.nn,
-                         cmd.options.build.index, cmd.options.solve);
-  SolveResult result = solver.SolveSequence(frames, jaw, errors);
+  StageTimer timer("solve " + cmd.options.method);
+  MethodSolvers solvers(actor, cmd.options.methods,
+                        /*write_cache=*/!cmd.no_cache_write);
+  SolveResult result =
+      solvers.Solve(cmd.options.method, frames, jaw, errors);
 
   std::filesystem::path out_path(cmd.out);
   const std::filesystem::path parent =
@@ -177,16 +187,21 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   WriteOptionsUsed(binding.fields(), parent / "options_used.yaml");
   if (!cmd.diagnostics_file.empty()) {
     WriteFileAtomic(cmd.diagnostics_file,
-                    Diagnostics(actor, model, result).dump(1) + "\n");
+                    Diagnostics(actor, cmd.options.method,
+                                solvers.lgi_model(), result)
+                            .dump(1) +
+                        "\n");
   }
-  spdlog::info("solve: {}", result.summary.BriefReport());
+  spdlog::info("solve ({}): {}", cmd.options.method,
+               result.summary.BriefReport());
   return 0;
 }
 
 }  // namespace
 
 HMC_COMMAND(Solve, "", "solve",
-            "Solve meshes from bundles by local geometric indexing") {
+            "Solve meshes from bundles (local geometric indexing or a "
+            "baseline: --method)") {
   auto cmd = std::make_shared<SolveCommand>();
   app->add_option("--actor", cmd->actor_dir, "Actor package folder")
       ->required()

@@ -106,19 +106,13 @@ InterpSolver::InterpSolver(const TriMesh& neutral, const ShapeData& data,
   full_lu_.compute(System(collocation_, centres_, all));
 }
 
-FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
-                                    const JawPose& jaw, MatX3d* mesh) const {
+bool InterpSolver::InterpolateDisplacements(const std::vector<Vec3>& disp,
+                                           const std::vector<char>& observed,
+                                           MatX3d* field,
+                                           std::string* reason) const {
   const int K = data_.num_bundles, V = data_.num_vertices;
-  FrameSolve f;
-  const std::vector<char> observed =
-      BeginFrame(bundles, jaw, marker_index_, K, &f);
-  std::vector<Vec3> disp(K, Vec3::Zero());
-  for (int k = 0; k < K; ++k) {
-    if (!observed[k]) continue;
-    f.bundles[k].status = BundleSolve::Status::kInside;
-    disp[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed) -
-              centres_.row(k).transpose();
-  }
+  HMC_CHECK(static_cast<int>(disp.size()) == K);
+  HMC_CHECK(static_cast<int>(observed.size()) == K);
   // Bundles sharing a site (within merge_mm on the neutral) give one
   // constraint, their mean displacement; without the merge the system would
   // be singular or ill-conditioned.
@@ -126,10 +120,8 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
   std::vector<Vec3> group_disp;  // the group's summed displacements
   std::vector<int> group_size;
   std::vector<int> slot(K, -1);  // per representative: index into ids
-  int num_observed = 0;
   for (int k = 0; k < K; ++k) {
     if (!observed[k]) continue;
-    ++num_observed;
     const int r = representative_[k];
     if (slot[r] < 0) {
       slot[r] = static_cast<int>(ids.size());
@@ -143,13 +135,9 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
   }
   const int n = static_cast<int>(ids.size());
   // The affine term needs four sites that are not coplanar.
-  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
-  if (num_observed < needed || n < 4) {
-    for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
-    f.reason = fmt::format(
-        "only {} of {} bundles observed (need {}, and 4 distinct sites)",
-        num_observed, K, needed);
-    return f;
+  if (n < 4) {
+    *reason = fmt::format("only {} distinct bundle sites observed (need 4)", n);
+    return false;
   }
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n + 4, 3);
   for (int a = 0; a < n; ++a) {
@@ -161,16 +149,13 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
                                      : system.partialPivLu().solve(rhs).eval();
   if (!coeffs.allFinite() ||
       (system * coeffs - rhs).norm() > 1e-6 * (1 + rhs.norm())) {
-    for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
-    f.reason =
+    *reason =
         "the observed bundles do not determine the interpolation "
         "(coplanar sites)";
-    return f;
+    return false;
   }
-  f.ok = true;
-  if (!mesh) return f;
   const Eigen::Matrix<double, 4, 3> affine = coeffs.bottomRows(4);
-  MatX3d out(V, 3);
+  field->resize(V, 3);
   ParallelFor(
       0, V,
       [&](int64_t v) {
@@ -186,9 +171,45 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
           }
           d += psi * coeffs.row(a).transpose();
         }
-        out.row(v) = (x + d).transpose();
+        field->row(v) = d.transpose();
       },
       64);
+  return true;
+}
+
+FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
+                                    const JawPose& jaw, MatX3d* mesh) const {
+  const int K = data_.num_bundles;
+  FrameSolve f;
+  const std::vector<char> observed =
+      BeginFrame(bundles, jaw, marker_index_, K, &f);
+  std::vector<Vec3> disp(K, Vec3::Zero());
+  int num_observed = 0;
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
+    ++num_observed;
+    f.bundles[k].status = BundleSolve::Status::kInside;
+    disp[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed) -
+              centres_.row(k).transpose();
+  }
+  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
+  auto fail = [&](const std::string& reason) {
+    for (BundleSolve& b : f.bundles) b.status = BundleSolve::Status::kUnused;
+    f.reason = reason;
+    return f;
+  };
+  if (num_observed < needed) {
+    return fail(fmt::format("only {} of {} bundles observed (need {})",
+                            num_observed, K, needed));
+  }
+  MatX3d field;
+  std::string reason;
+  if (!InterpolateDisplacements(disp, observed, &field, &reason)) {
+    return fail(reason);
+  }
+  f.ok = true;
+  if (!mesh) return f;
+  const MatX3d out = neutral_.V + field;
   *mesh = data_.jaw_rig ? Skin(*data_.jaw_rig, jaw, out) : out;
   for (int k = 0; k < K; ++k) {
     if (!observed[k]) continue;

@@ -70,6 +70,15 @@ class InterpSolver {
       const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
       const std::vector<std::string>& frame_errors = {}) const;
 
+  // The spline on its own (also the smooth correction of lgi-rbf): the
+  // displacement field f (V x 3, mm, f(v) at neutral vertex v) whose surface
+  // point at each bundle k with observed[k] equals disp[k] (K entries, mm).
+  // Returns false and says why in *reason when the observed bundles do not
+  // determine the spline (fewer than 4 distinct sites, coplanar sites).
+  bool InterpolateDisplacements(const std::vector<Vec3>& disp,
+                                const std::vector<char>& observed,
+                                MatX3d* field, std::string* reason) const;
+
  private:
   const TriMesh& neutral_;
   const ShapeData& data_;

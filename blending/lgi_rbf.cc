@@ -1,0 +1,263 @@
+#include "blending/lgi_rbf.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "core/error.h"
+#include "core/jaw.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+#include "indexing/shape_data.h"
+
+namespace hmc {
+
+void LgiRbfOptions::Register(OptionFields* fields) {
+  fields->SetGroup("lgi_rbf");
+  fields->Add("sigma_mm", &sigma_mm,
+              "Gaussian width (mm); 0: sigma_scale times the median distance "
+              "of a bundle site to its nearest site on the neutral");
+  fields->Add("sigma_scale", &sigma_scale,
+              "automatic Gaussian width, in nearest-site distances");
+  fields->Add("ridge", &ridge,
+              "Tikhonov term added to the kernel matrix's unit diagonal");
+  fields->Add("cutoff", &cutoff,
+              "kernel values below this are dropped (sparse evaluation)");
+  fields->Add("correct", &correct,
+              "smoothly correct the RBF result so it passes through the "
+              "bundles (false: plain RBF, for comparison)");
+  fields->SetGroup("");
+}
+
+bool LgiRbfOptions::Check() const {
+  if (!(sigma_mm >= 0) || !std::isfinite(sigma_mm)) {
+    spdlog::error("lgi_rbf options: sigma_mm must be >= 0 and finite");
+    return false;
+  }
+  if (!(sigma_scale > 0) || !std::isfinite(sigma_scale)) {
+    spdlog::error("lgi_rbf options: sigma_scale must be > 0 and finite");
+    return false;
+  }
+  if (!(ridge >= 0) || !std::isfinite(ridge)) {
+    spdlog::error("lgi_rbf options: ridge must be >= 0 and finite");
+    return false;
+  }
+  if (!(cutoff > 0 && cutoff < 1)) {
+    spdlog::error("lgi_rbf options: cutoff must be in (0, 1)");
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+double Gaussian(double squared_distance, double sigma) {
+  return std::exp(-squared_distance / (2 * sigma * sigma));
+}
+
+}  // namespace
+
+LgiRbfSolver::LgiRbfSolver(const TriMesh& neutral, const ShapeData& data,
+                           const LgiSolver& lgi, const LgiRbfOptions& options,
+                           const InterpOptions& interp_options)
+    : neutral_(neutral),
+      data_(data),
+      lgi_(lgi),
+      options_(options),
+      correction_(neutral, data, interp_options) {
+  const int K = data.num_bundles, V = data.num_vertices;
+  HMC_CHECK(neutral.NumVertices() == V);
+  const MatX3d& sites = data.site_neutral;
+  sigma_ = options.sigma_mm;
+  if (sigma_ <= 0) {
+    // Scale-free default: the kernel spans about one marker spacing, so the
+    // weight field neither collapses to spikes at the sites nor smears a
+    // bundle's expression across distant ones.
+    std::vector<double> nearest;
+    for (int k = 0; k < K; ++k) {
+      double best = std::numeric_limits<double>::infinity();
+      for (int j = 0; j < K; ++j) {
+        const double d = (sites.row(k) - sites.row(j)).norm();
+        if (j != k && d > 1e-9) best = std::min(best, d);
+      }
+      if (std::isfinite(best)) nearest.push_back(best);
+    }
+    double median = 10.0;
+    if (!nearest.empty()) {
+      std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2,
+                       nearest.end());
+      median = nearest[nearest.size() / 2];
+    }
+    sigma_ = options.sigma_scale * median;
+  }
+  kernel_.resize(K, K);
+  for (int k = 0; k < K; ++k) {
+    for (int j = 0; j < K; ++j) {
+      kernel_(k, j) =
+          Gaussian((sites.row(k) - sites.row(j)).squaredNorm(), sigma_);
+    }
+    kernel_(k, k) += options.ridge;
+  }
+  full_llt_.compute(kernel_);
+  HMC_CHECK_MSG(full_llt_.info() == Eigen::Success,
+                "lgi-rbf: the Gaussian kernel matrix is not positive "
+                "definite (coincident bundle sites and ridge 0?)");
+  // Per vertex, the kernel to every site within the cutoff radius.
+  const double radius2 = -2 * sigma_ * sigma_ * std::log(options.cutoff);
+  std::vector<std::vector<std::pair<int, double>>> rows(V);
+  ParallelFor(
+      0, V,
+      [&](int64_t v) {
+        for (int k = 0; k < K; ++k) {
+          const double d2 = (neutral.V.row(v) - sites.row(k)).squaredNorm();
+          if (d2 <= radius2) rows[v].emplace_back(k, Gaussian(d2, sigma_));
+        }
+      },
+      256);
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int v = 0; v < V; ++v) {
+    for (const auto& [k, g] : rows[v]) triplets.emplace_back(v, k, g);
+  }
+  vertex_kernel_.resize(V, K);
+  vertex_kernel_.setFromTriplets(triplets.begin(), triplets.end());
+}
+
+bool LgiRbfSolver::Blend(FrameSolve* frame, MatX3d* mesh) const {
+  const int K = data_.num_bundles, V = data_.num_vertices;
+  const int N = data_.num_shapes;
+  HMC_CHECK(static_cast<int>(frame->bundles.size()) == K);
+  // The shapes any bundle uses: the only columns of the weight field.
+  std::map<int, int> column;
+  std::vector<int> used;  // bundles with a choice
+  for (int k = 0; k < K; ++k) {
+    const BundleSolve& b = frame->bundles[k];
+    if (b.status == BundleSolve::Status::kUnused) continue;
+    used.push_back(k);
+    for (const auto& [n, w] : b.weights) {
+      HMC_CHECK(n >= 0 && n < N);
+      column.emplace(n, 0);
+    }
+  }
+  std::vector<int> shapes;
+  for (auto& [n, c] : column) {
+    c = static_cast<int>(shapes.size());
+    shapes.push_back(n);
+  }
+  const int M = static_cast<int>(shapes.size());
+  const int U = static_cast<int>(used.size());
+  Eigen::MatrixXd coeffs = Eigen::MatrixXd::Zero(K, M);  // A
+  if (M > 0 && U > 0) {
+    Eigen::MatrixXd W = Eigen::MatrixXd::Zero(U, M);
+    for (int a = 0; a < U; ++a) {
+      for (const auto& [n, w] : frame->bundles[used[a]].weights) {
+        W(a, column.at(n)) = w;
+      }
+    }
+    if (U == K) {
+      coeffs = full_llt_.solve(W);
+    } else {
+      Eigen::MatrixXd sub(U, U);
+      for (int a = 0; a < U; ++a) {
+        for (int b = 0; b < U; ++b) sub(a, b) = kernel_(used[a], used[b]);
+      }
+      const Eigen::MatrixXd A = sub.llt().solve(W);
+      for (int a = 0; a < U; ++a) coeffs.row(used[a]) = A.row(a);
+    }
+  }
+  // y*(v) = x0(v) + sum_n w_n(v) b*_n(v), w(v) = sum_k phi_k(v) A_k.
+  MatX3d unskinned(V, 3);
+  ParallelFor(
+      0, V,
+      [&](int64_t v) {
+        Eigen::VectorXd w = Eigen::VectorXd::Zero(M);
+        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
+                 vertex_kernel_, v);
+             it; ++it) {
+          w += it.value() * coeffs.row(it.col()).transpose();
+        }
+        Vec3 x = neutral_.V.row(v).transpose();
+        const float* b = data_.VertexDisplacements(static_cast<int>(v));
+        for (int m = 0; m < M; ++m) {
+          const float* bn = b + static_cast<size_t>(shapes[m]) * 3;
+          x += w[m] * Vec3(bn[0], bn[1], bn[2]);
+        }
+        unskinned.row(v) = x.transpose();
+      },
+      64);
+  if (options_.correct) {
+    std::vector<Vec3> disp(K, Vec3::Zero());
+    std::vector<char> observed(K, 0);
+    for (int k = 0; k < K; ++k) {
+      const BundleSolve& b = frame->bundles[k];
+      if (b.status != BundleSolve::Status::kInside &&
+          b.status != BundleSolve::Status::kProjected) {
+        continue;
+      }
+      observed[k] = 1;
+      disp[k] = UnskinBundle(data_, k, frame->jaw, b.observed) -
+                EvaluateSurfacePoint(data_.sites[k], neutral_.F, unskinned);
+    }
+    MatX3d field;
+    std::string reason;
+    if (!correction_.InterpolateDisplacements(disp, observed, &field,
+                                              &reason)) {
+      frame->ok = false;
+      frame->reason = "lgi-rbf correction: " + reason;
+      return false;
+    }
+    unskinned += field;
+  }
+  *mesh = data_.jaw_rig ? Skin(*data_.jaw_rig, frame->jaw, unskinned)
+                        : unskinned;
+  for (int k = 0; k < K; ++k) {
+    BundleSolve& b = frame->bundles[k];
+    if (b.status != BundleSolve::Status::kInside &&
+        b.status != BundleSolve::Status::kProjected) {
+      continue;
+    }
+    b.residual =
+        (EvaluateSurfacePoint(data_.sites[k], neutral_.F, *mesh) - b.observed)
+            .norm();
+  }
+  return true;
+}
+
+SolveResult LgiRbfSolver::SolveSequence(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors) const {
+  // The lgi solve makes the per-bundle choices (with its temporal
+  // preference and smoothing) and the bad-frame decisions; its own
+  // natural-neighbour meshes are replaced below.
+  return SolveFromLgi(lgi_.SolveSequence(frames, jaw, frame_errors));
+}
+
+SolveResult LgiRbfSolver::SolveFromLgi(SolveResult lgi_result) const {
+  SolveResult result = std::move(lgi_result);
+  const int F = static_cast<int>(result.frames.size());
+  int last_good = -1;
+  Progress progress("lgi-rbf blend", F);
+  for (int f = 0; f < F; ++f) {
+    FrameSolve& fs = result.frames[f];
+    if (fs.ok) {
+      MatX3d mesh;
+      if (Blend(&fs, &mesh)) {
+        result.meshes[f] = std::move(mesh);
+        last_good = f;
+      } else {
+        ++result.summary.bad_frames;
+        spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
+      }
+    }
+    // A bad frame repeats the previous good mesh (the lgi result already
+    // holds the jaw-skinned neutral before the first good frame).
+    if (!fs.ok && last_good >= 0) result.meshes[f] = result.meshes[last_good];
+    progress.Advance();
+  }
+  progress.Finish();
+  return result;
+}
+
+}  // namespace hmc
