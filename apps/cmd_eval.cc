@@ -23,6 +23,7 @@
 #include <string>
 
 #include "apps/command.h"
+#include "apps/picture_options.h"
 #include "blending/eval_metrics.h"
 #include "core/actor.h"
 #include "core/color_map.h"
@@ -42,24 +43,13 @@ namespace {
 struct EvalOptions {
   MeshMetricsOptions metrics;
   int uv_resolution = 512;  // side of the UV-space error maps (px)
-  int image_width = 360;    // size of one picture panel (px)
-  int image_height = 450;
-  double heat_max_mm = 0.0;           // top of the heat-map scale (mm); 0: the
-                                      // largest face-region 95th percentile of
-                                      // the frames
-  std::string color_map = "viridis";  // heat-map colours
+  PictureOptions picture;
 
   void Register(OptionFields* fields) {
     metrics.Register(fields);
     fields->Add("uv_resolution", &uv_resolution,
                 "side of the UV-space error maps (px)");
-    fields->Add("image_width", &image_width, "picture panel width (px)");
-    fields->Add("image_height", &image_height, "picture panel height (px)");
-    fields->Add("heat_max_mm", &heat_max_mm,
-                "top of the heat-map scale (mm); 0: the largest face-region "
-                "95th percentile of the frames");
-    fields->Add("color_map", &color_map,
-                "heat-map colours: viridis, inferno, turbo");
+    picture.Register(fields);
   }
   bool Check() const {
     if (!metrics.Check()) return false;
@@ -67,15 +57,7 @@ struct EvalOptions {
       spdlog::error("uv_resolution must be in [8, 8192]");
       return false;
     }
-    if (image_width < 32 || image_height < 32) {
-      spdlog::error("image_width and image_height must be >= 32");
-      return false;
-    }
-    if (!(heat_max_mm >= 0) || !std::isfinite(heat_max_mm)) {
-      spdlog::error("heat_max_mm must be >= 0");
-      return false;
-    }
-    return true;
+    return picture.Check();
   }
 };
 
@@ -150,7 +132,7 @@ cv::Mat UvMap(const TriMesh& mesh, const Eigen::VectorXd& values, int size) {
 int Run(EvalCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "eval");
-  const ColorMap color_map = ParseColorMap(cmd.options.color_map);
+  const ColorMap color_map = ParseColorMap(cmd.options.picture.color_map);
   const Actor actor = LoadActor(cmd.actor_dir);
   const TriMesh& neutral = actor.neutral;
   const int V = neutral.NumVertices();
@@ -274,14 +256,14 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
     const int uv = cmd.options.uv_resolution;
     WriteExr(out / "error_uv_mean.exr",
              UvMap(neutral, metrics.mean_vertex_error, uv));
-    double hi = cmd.options.heat_max_mm;
+    double hi = cmd.options.picture.heat_max_mm;
     if (hi <= 0) {
       for (const FrameMetrics& e : evals) hi = std::max(hi, e.face.p95);
       if (hi <= 0) hi = 1e-3;
     }
     MeshRenderOptions ro;
-    ro.width = cmd.options.image_width;
-    ro.height = cmd.options.image_height;
+    ro.width = cmd.options.picture.image_width;
+    ro.height = cmd.options.picture.image_height;
     for (const int number : picture_frames) {
       const int f = static_cast<int>(
           std::find(numbers.begin(), numbers.end(), number) - numbers.begin());

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/picture_options.h"
 #include "blending/eval_metrics.h"
 #include "blending/solve_method.h"
 #include "core/actor.h"
@@ -93,11 +94,7 @@ struct ExperimentOptions {
   bool write_meshes = false;  // write truth.pc2 and <method>.pc2 per material
   std::string picture_kind = "combos";  // material pictured (first noise level)
   int picture_frame = 1;                // its frame number pictured
-  int image_width = 320;                // picture panel size (px)
-  int image_height = 400;
-  double heat_max_mm = 0.0;  // top of the heat-map scale (mm); 0: the largest
-                             // face 95th percentile of the pictured frame
-  std::string color_map = "viridis";  // heat-map colours
+  PictureOptions picture{320, 400};
   MeshMetricsOptions metrics;
   MethodOptions solve;
 
@@ -121,13 +118,7 @@ struct ExperimentOptions {
     fields->Add("picture_kind", &picture_kind,
                 "material pictured (first noise level)");
     fields->Add("picture_frame", &picture_frame, "frame number pictured");
-    fields->Add("image_width", &image_width, "picture panel width (px)");
-    fields->Add("image_height", &image_height, "picture panel height (px)");
-    fields->Add("heat_max_mm", &heat_max_mm,
-                "top of the heat-map scale (mm); 0: the largest face 95th "
-                "percentile of the pictured frame");
-    fields->Add("color_map", &color_map,
-                "heat-map colours: viridis, inferno, turbo");
+    picture.Register(fields);
     metrics.Register(fields);
     solve.Register(fields);
   }
@@ -173,13 +164,7 @@ struct ExperimentOptions {
       }
     }
     if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
-    if (image_width < 32 || image_height < 32) {
-      fail("image_width and image_height must be >= 32");
-    }
-    if (!(heat_max_mm >= 0) || !std::isfinite(heat_max_mm)) {
-      fail("heat_max_mm must be >= 0");
-    }
-    return ok;
+    return ok && picture.Check();
   }
 
   int FramesOf(const std::string& kind) const {
@@ -237,8 +222,8 @@ void WritePicture(const std::filesystem::path& path, const TriMesh& neutral,
   box.row(0) = box.row(0).cwiseMin(rbox.row(0));
   box.row(1) = box.row(1).cwiseMax(rbox.row(1));
   MeshRenderOptions ro;
-  ro.width = o.image_width;
-  ro.height = o.image_height;
+  ro.width = o.picture.image_width;
+  ro.height = o.picture.image_height;
   ro.frame_box = box;
   const cv::Mat panels = ComposeLabelledPanels(
       {RenderMesh(t, ro), RenderMesh(r, ro),
@@ -285,7 +270,7 @@ int Run(ExperimentCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   const ExperimentOptions& o = cmd.options;
   RequireValid(o, "experiment");
-  const ColorMap color_map = ParseColorMap(o.color_map);
+  const ColorMap color_map = ParseColorMap(o.picture.color_map);
   const auto start = std::chrono::steady_clock::now();
   StageTimer total("experiment");
 
@@ -438,7 +423,7 @@ int Run(ExperimentCommand& cmd, OptionBinding& binding) {
       }
       if (picture) {
         const MatX3d& t = truth_meshes[o.picture_frame - truth.start_frame];
-        double hi = o.heat_max_mm;
+        double hi = o.picture.heat_max_mm;
         if (hi <= 0) {
           for (const auto& [method, r] : picture_meshes) {
             std::vector<double> face =

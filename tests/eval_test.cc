@@ -21,6 +21,7 @@
 #include "core/actor.h"
 #include "core/file_util.h"
 #include "tests/cli_runner.h"
+#include "tests/small_actor.h"
 #include "core/image_io.h"
 #include "core/mesh_sequence.h"
 #include "synth/synth_actor.h"
@@ -88,18 +89,8 @@ class EvalCli : public ::testing::TestWithParam<int> {};
 
 TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
   const int seed = GetParam();
-  const fs::path dir = fs::temp_directory_path() /
-                       fmt::format("hmc_eval_test_{}_{}", getpid(), seed);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  SynthActorOptions options;
-  options.seed = seed;
-  options.grid_u = 48;
-  options.grid_v = 40;
-  options.dataset_inbetweens = false;
-  options.dataset_combos = false;
-  WriteActor(SynthesizeActor(options), dir / "actor", 17);
-  const Actor actor = LoadActor(dir / "actor");
+  const fs::path dir = FreshTestDir("hmc_eval_test", seed);
+  const Actor actor = WriteSmallActor(dir, seed, 48, 40);
   const int V = actor.NumVertices();
 
   // Truth: a few dataset shapes; recon: the truth plus seeded noise and a

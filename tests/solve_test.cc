@@ -18,6 +18,7 @@
 #include "core/actor.h"
 #include "core/file_util.h"
 #include "tests/cli_runner.h"
+#include "tests/small_actor.h"
 #include "core/frame_data.h"
 #include "core/mesh_sequence.h"
 #include "synth/synth_actor.h"
@@ -35,19 +36,8 @@ class SolveCli : public ::testing::TestWithParam<int> {};
 // neutral) must still be recognised by the neighbour criterion.
 TEST_P(SolveCli, VerificationThroughTheCli) {
   const int seed = GetParam();
-  const fs::path dir = fs::temp_directory_path() /
-                       fmt::format("hmc_solve_test_{}_{}", getpid(), seed);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  SynthActorOptions options;
-  options.seed = seed;
-  options.grid_u = 96;
-  options.grid_v = 80;
-  options.dataset_inbetweens = false;
-  options.dataset_combos = false;
-  const Actor synth = SynthesizeActor(options);
-  WriteActor(synth, dir / "actor", 17);
-  const Actor actor = LoadActor(dir / "actor");
+  const fs::path dir = FreshTestDir("hmc_solve_test", seed);
+  const Actor actor = WriteSmallActor(dir, seed, 96, 80);
 
   // One frame per dataset shape (frame 3 left with a single bundle: bad).
   std::vector<BundleFrame> frames;
@@ -138,18 +128,8 @@ class SolveMethodCli : public ::testing::TestWithParam<int> {};
 
 TEST_P(SolveMethodCli, EveryMethodSameInputsAndOutputs) {
   const int seed = GetParam();
-  const fs::path dir = fs::temp_directory_path() /
-                       fmt::format("hmc_solve_method_test_{}_{}", getpid(), seed);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  SynthActorOptions options;
-  options.seed = seed;
-  options.grid_u = 48;
-  options.grid_v = 40;
-  options.dataset_inbetweens = false;
-  options.dataset_combos = false;
-  WriteActor(SynthesizeActor(options), dir / "actor", 17);
-  const Actor actor = LoadActor(dir / "actor");
+  const fs::path dir = FreshTestDir("hmc_solve_method_test", seed);
+  const Actor actor = WriteSmallActor(dir, seed, 48, 40);
   std::vector<BundleFrame> frames;
   for (int f = 1; f <= 4; ++f) {
     BundleFrame b;
