@@ -264,16 +264,13 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
   grid_origin_ = lo;
 
   const size_t S = simplices_.size();
+  // The simplices' boxes (ComputeBoxes, rounded outwards), padded.
   std::vector<Eigen::Matrix<double, 2, 3>> boxes(S);
   for (size_t i = 0; i < S; ++i) {
-    const CloudSimplex& s = simplices_[i];
-    Vec3 mn = points_.row(s.corner[0]).transpose(), mx = mn;
-    for (int c = 1; c < s.size; ++c) {
-      mn = mn.cwiseMin(points_.row(s.corner[c]).transpose());
-      mx = mx.cwiseMax(points_.row(s.corner[c]).transpose());
+    for (int a = 0; a < 3; ++a) {
+      boxes[i](0, a) = boxes_[i][a] - pad;
+      boxes[i](1, a) = boxes_[i][3 + a] + pad;
     }
-    boxes[i].row(0) = (mn - Vec3::Constant(pad)).transpose();
-    boxes[i].row(1) = (mx + Vec3::Constant(pad)).transpose();
   }
   auto range_of = [&](const Eigen::Matrix<double, 2, 3>& b, double h,
                       const std::array<int, 3>& n) {

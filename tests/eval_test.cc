@@ -24,7 +24,6 @@
 #include "tests/small_actor.h"
 #include "core/image_io.h"
 #include "core/mesh_sequence.h"
-#include "synth/synth_actor.h"
 
 namespace hmc {
 namespace {

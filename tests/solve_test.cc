@@ -21,7 +21,6 @@
 #include "tests/small_actor.h"
 #include "core/frame_data.h"
 #include "core/mesh_sequence.h"
-#include "synth/synth_actor.h"
 
 namespace hmc {
 namespace {
