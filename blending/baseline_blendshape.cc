@@ -250,20 +250,7 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
                            num_observed, K, needed);
     return f;
   }
-  // Missing bundles have d = 0 and their rank-3 terms leave the normal
-  // matrix.
-  Eigen::MatrixXd H = normal_;
-  for (int k = 0; k < K; ++k) {
-    if (observed[k]) continue;
-    const auto Bk = site_shapes_.middleRows(3 * k, 3);
-    H.noalias() -= Bk.transpose() * Bk;
-  }
-  const Eigen::VectorXd c = site_shapes_.transpose() * d;
-  // E = w^T H w - 2 c^T w + mu pen = 2 (1/2 w^T H w - c^T w + 1/2 mu pen).
-  const Eigen::VectorXd w =
-      options_.bounded
-          ? SolveBoundedBoxQp(H, c, options_.max_iterations)
-          : SolveSoftBoxQp(H, c, options_.penalty, options_.max_iterations);
+  const Eigen::VectorXd w = FitWeights(observed, d, 0.0);
   f.ok = true;
   if (mesh) {
     *mesh = Blend(w, jaw);
@@ -277,6 +264,31 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
   }
   if (weights) *weights = w;
   return f;
+}
+
+Eigen::MatrixXd BlendshapeSolver::Normal(
+    const std::vector<char>& observed) const {
+  // Missing bundles have d = 0 and their rank-3 terms leave the normal
+  // matrix.
+  Eigen::MatrixXd H = normal_;
+  for (int k = 0; k < data_.num_bundles; ++k) {
+    if (observed[k]) continue;
+    const auto Bk = site_shapes_.middleRows(3 * k, 3);
+    H.noalias() -= Bk.transpose() * Bk;
+  }
+  return H;
+}
+
+Eigen::VectorXd BlendshapeSolver::FitWeights(const std::vector<char>& observed,
+                                             const Eigen::VectorXd& d,
+                                             double ridge) const {
+  Eigen::MatrixXd H = Normal(observed);
+  H.diagonal().array() += ridge;
+  const Eigen::VectorXd c = Project(d);
+  // E = w^T H w - 2 c^T w + mu pen = 2 (1/2 w^T H w - c^T w + 1/2 mu pen).
+  return options_.bounded
+             ? SolveBoundedBoxQp(H, c, options_.max_iterations)
+             : SolveSoftBoxQp(H, c, options_.penalty, options_.max_iterations);
 }
 
 MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,

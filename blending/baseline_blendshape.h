@@ -88,6 +88,25 @@ class BlendshapeSolver {
   FrameSolve SolveFrame(const BundleFrame& bundles, const JawPose& jaw,
                         Eigen::VectorXd* weights, MatX3d* mesh) const;
 
+  // The normal matrix over the observed bundles (K flags): sum_k B_k^T B_k
+  // + lambda I (N x N).
+  Eigen::MatrixXd Normal(const std::vector<char>& observed) const;
+  // B^T d for unskinned displacements d (3K, zero where not observed).
+  Eigen::VectorXd Project(const Eigen::VectorXd& d) const {
+    return site_shapes_.transpose() * d;
+  }
+  // The weights (N) fitted to d (3K, zero where not observed) with `ridge`
+  // added to the normal matrix's diagonal (mm^2 per unit of weight^2): a
+  // noise-aware prior pulling the weights toward the neutral.
+  Eigen::VectorXd FitWeights(const std::vector<char>& observed,
+                             const Eigen::VectorXd& d, double ridge) const;
+
+  // The unskinned displacement sum_n w_n b*_n(s_k) of bundle k's surface
+  // point (mm). weights: N.
+  Vec3 SiteDisplacement(int k, const Eigen::VectorXd& weights) const {
+    return site_shapes_.middleRows<3>(3 * k) * weights;
+  }
+
   // x = Skin(x0 + sum_n w_n b*_n, jaw): V x 3 (mm). weights: N.
   MatX3d Blend(const Eigen::VectorXd& weights, const JawPose& jaw) const;
 
