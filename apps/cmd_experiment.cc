@@ -84,9 +84,10 @@ struct ExperimentOptions {
   std::string kinds = "dataset,combos,performance,heldout,mixed";  // material
                        // kinds (synth/truth_frames.h); heldout and mixed are
                        // skipped for an actor without held-out units
-  std::string noise_mm = "0,0.5";  // marker noise levels: std per bundle
+  std::string noise_mm = "0,0.5,1";  // marker noise levels: std per bundle
                                    // coordinate (mm), comma separated
-  std::string methods = "lgi,blendshape,blendshape-bounded,interp,lgi-rbf";
+  std::string methods =
+      "robust,lgi,blendshape,blendshape-bounded,interp,lgi-rbf";
   int default_frames = 30;  // frames of a kind not listed in `frames`
   std::string frames = "combos:30,performance:60,heldout:30,mixed:30";
                             // frames per kind (dataset: all shapes)

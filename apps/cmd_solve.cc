@@ -1,9 +1,12 @@
 // `hmc solve --actor DIR --bundles bundles.csv [--jaw jaw.csv] --out OUT
 // [--method NAME] [--diagnostics FILE.json]`: meshes from bundles. The
-// default method `lgi` is local geometric indexing per bundle and frame,
-// sewn with natural-neighbour weights (DESIGN.md section 4); the others
-// (blendshape, blendshape-bounded, interp, lgi-rbf: docs/baselines.md) take
-// the same inputs and write the same outputs (blending/solve_method.h). OUT
+// default method `robust` (blending/robust_solver.h, docs/method.md) uses
+// local geometric indexing per bundle and frame, sewn with natural-neighbour
+// weights (DESIGN.md section 4), where the local data explain the markers
+// beyond their noise, and a noise-aware global fit elsewhere; `lgi` is the
+// paper's method alone; the others (blendshape, blendshape-bounded, interp,
+// lgi-rbf: docs/baselines.md) take the same inputs and write the same
+// outputs (blending/solve_method.h). OUT
 // by extension: .pc2, .mdd, .usda, or a folder of OBJ frames. The lgi index
 // is loaded from the actor's cache when valid, else built (and cached).
 // Writes options_used.yaml (with the method) next to OUT.
@@ -33,8 +36,8 @@ namespace hmc {
 namespace {
 
 struct SolveCommandOptions {
-  std::string method = "lgi";  // lgi | blendshape | blendshape-bounded |
-                               // interp | lgi-rbf
+  std::string method = "robust";  // robust | lgi | blendshape |
+                                  // blendshape-bounded | interp | lgi-rbf
   MethodOptions methods;
 
   void Register(OptionFields* fields) {

@@ -13,6 +13,7 @@
 #include <benchmark/benchmark.h>
 
 #include "blending/lgi_solver.h"
+#include "blending/robust_solver.h"
 #include "blending/solve_index_cache.h"
 #include "synth/synth_actor.h"
 #include "synth/truth_frames.h"
@@ -154,6 +155,36 @@ BENCHMARK(BM_SolveFrame)
     ->Args({100, 8, 64, 32})
     ->Args({200, 6, 24, 8})
     ->Args({200, 6, 64, 32})
+    ->Repetitions(3)
+    ->ReportAggregatesOnly(true);
+
+// The robust default (blending/robust_solver.h) over the 24 combination
+// frames: it is a sequence solve (the noise estimate and the ridge are per
+// sequence), so the counter s_per_frame is the sequence time / 24, with the
+// default index pruning (quality 0.2, edges <= 6 mm).
+void BM_RobustSequence(benchmark::State& state) {
+  Base& base = GetBase();
+  Variant& v = GetVariant(200, 6, 24, 8);
+  BlendshapeOptions bounded;
+  bounded.bounded = true;
+  const BlendshapeSolver global(base.actor.neutral, base.data, bounded);
+  RobustSolver robust(base.actor.neutral, base.data, *v.solver, base.nn,
+                      global, SolveOptions(), RobustOptions());
+  const TruthFrames& t = base.combos;
+  std::vector<JawPose> jaw;
+  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  for (auto _ : state) {
+    SolveResult r = robust.SolveSequence(t.bundles, jaw);
+    benchmark::DoNotOptimize(r.meshes.data());
+  }
+  state.counters["s_per_frame"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * t.bundles.size()),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_RobustSequence)
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime()
+    ->UseRealTime()
     ->Repetitions(3)
     ->ReportAggregatesOnly(true);
 

@@ -138,6 +138,8 @@ class LgiSolver {
   Vec3 Predict(int k, const IndexCandidate& candidate, int j) const;
 
   int NumBundles() const { return data_.num_bundles; }
+  // Bundle k's natural neighbours (without k), as the criterion uses them.
+  const std::vector<int>& Neighbours(int k) const { return neighbours_[k]; }
 
  private:
   // Sets out's choice (simplex, corner shapes, weights, cost). A candidate

@@ -17,16 +17,18 @@ void MethodOptions::Register(OptionFields* fields) {
   blendshape.Register(fields);
   interp.Register(fields);
   lgi_rbf.Register(fields);
+  robust.Register(fields);
 }
 
 bool MethodOptions::Check() const {
   return build.Check() && solve.Check() && blendshape.Check() &&
-         interp.Check() && lgi_rbf.Check();
+         interp.Check() && lgi_rbf.Check() && robust.Check();
 }
 
 const std::vector<std::string>& SolveMethodNames() {
   static const std::vector<std::string> names = {
-      "lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf"};
+      "robust", "lgi", "blendshape", "blendshape-bounded", "interp",
+      "lgi-rbf"};
   return names;
 }
 
@@ -92,7 +94,8 @@ const ShapeData& MethodSolvers::data() {
 
 void MethodSolvers::Prepare(const std::string& method) {
   CheckSolveMethod(method, "solve method");
-  const bool needs_lgi = method == "lgi" || method == "lgi-rbf";
+  const bool needs_lgi =
+      method == "lgi" || method == "lgi-rbf" || method == "robust";
   if (needs_lgi && !lgi_model_) {
     lgi_model_ = std::make_unique<LgiModel>(
         LoadOrBuildLgiModel(actor_, options_.build.index, options_.build.nn,
@@ -114,7 +117,8 @@ void MethodSolvers::Prepare(const std::string& method) {
     blendshape_ = std::make_unique<BlendshapeSolver>(
         actor_.neutral, data(), options_.blendshape);
   }
-  if (method == "blendshape-bounded" && !blendshape_bounded_) {
+  if ((method == "blendshape-bounded" || method == "robust") &&
+      !blendshape_bounded_) {
     BlendshapeOptions bounded = options_.blendshape;
     bounded.bounded = true;
     blendshape_bounded_ =
@@ -123,6 +127,11 @@ void MethodSolvers::Prepare(const std::string& method) {
   if (method == "interp" && !interp_) {
     interp_ = std::make_unique<InterpSolver>(actor_.neutral, data(),
                                              options_.interp);
+  }
+  if (method == "robust" && !robust_) {
+    robust_ = std::make_unique<RobustSolver>(
+        actor_.neutral, lgi_model_->data, *lgi_, lgi_model_->nn,
+        *blendshape_bounded_, options_.solve, options_.robust);
   }
 }
 
@@ -151,6 +160,9 @@ SolveResult MethodSolvers::Solve(const std::string& method,
       return lgi_rbf_->SolveFromLgi(lgi_memo_->result);
     }
     return lgi_rbf_->SolveSequence(frames, jaw, frame_errors);
+  }
+  if (method == "robust") {
+    return robust_->SolveSequence(frames, jaw, frame_errors);
   }
   if (method == "blendshape") {
     return blendshape_->SolveSequence(frames, jaw, frame_errors);

@@ -5,7 +5,8 @@
 // frame plus FrameSolve diagnostics; bad frames repeat the previous good
 // mesh).
 //
-// Methods: "lgi" (blending/lgi_solver.h), "blendshape" and
+// Methods: "robust" (blending/robust_solver.h, the default of `hmc solve`),
+// "lgi" (blending/lgi_solver.h), "blendshape" and
 // "blendshape-bounded" (blending/baseline_blendshape.h), "interp"
 // (blending/baseline_interp.h), "lgi-rbf" (blending/lgi_rbf.h).
 //
@@ -24,6 +25,7 @@
 #include "blending/baseline_interp.h"
 #include "blending/lgi_rbf.h"
 #include "blending/lgi_solver.h"
+#include "blending/robust_solver.h"
 #include "blending/solve_index_cache.h"
 #include "core/actor.h"
 #include "core/options.h"
@@ -31,14 +33,15 @@
 namespace hmc {
 
 // Options of every method, each in its group: index, nn (the lgi index and
-// its cache), solve (lgi per frame; also the choices lgi-rbf spreads),
-// blendshape, interp, lgi_rbf.
+// its cache), solve (lgi per frame; also the choices lgi-rbf and robust
+// use), blendshape, interp, lgi_rbf, robust.
 struct MethodOptions {
   LgiBuildOptions build;
   SolveOptions solve;
   BlendshapeOptions blendshape;
   InterpOptions interp;
   LgiRbfOptions lgi_rbf;
+  RobustOptions robust;
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -93,6 +96,7 @@ class MethodSolvers {
   std::unique_ptr<BlendshapeSolver> blendshape_;
   std::unique_ptr<BlendshapeSolver> blendshape_bounded_;
   std::unique_ptr<InterpSolver> interp_;
+  std::unique_ptr<RobustSolver> robust_;
   // The last lgi solve, for lgi-rbf on the same inputs.
   struct LgiMemo {
     std::vector<BundleFrame> frames;

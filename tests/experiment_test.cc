@@ -58,7 +58,7 @@ TEST_P(ExperimentCli, TableIsCompleteAndAgreesWithEvalAndSolve) {
                                           "heldout"};
   const std::vector<std::string> noises = {"0", "0.5"};
   const std::vector<std::string> methods = {
-      "lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf"};
+      "robust", "lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf"};
   r = RunHmc(fmt::format("-q experiment --actor '{}' --out '{}' --seed {} "
                          "--kinds dataset,combos,performance,heldout "
                          "--noise_mm 0,0.5 "

@@ -142,7 +142,8 @@ TEST_P(SolveMethodCli, EveryMethodSameInputsAndOutputs) {
   }
   WriteBundlesCsv(dir / "bundles.csv", frames);
   for (const char* method :
-       {"lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf"}) {
+       {"robust", "lgi", "blendshape", "blendshape-bounded", "interp",
+        "lgi-rbf"}) {
     SCOPED_TRACE(method);
     const fs::path out = dir / method;
     const CliResult r = RunHmc(

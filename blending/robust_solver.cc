@@ -1,0 +1,560 @@
+#include "blending/robust_solver.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+#include <memory>
+#include <tuple>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/error.h"
+#include "core/jaw.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+
+namespace hmc {
+
+void RobustOptions::Register(OptionFields* fields) {
+  fields->SetGroup("robust");
+  fields->Add("noise_mm", &noise_mm,
+              "marker noise, std per coordinate (mm); negative: estimated "
+              "from the data");
+  fields->Add("local", &local,
+              "use local geometric indexing where it explains a bundle's "
+              "neighbourhood better than the global fit (false: global fit "
+              "and correction only)");
+  fields->Add("margin", &margin,
+              "lgi must beat the global fit's neighbourhood cost by this many "
+              "noise variances per bundle");
+  fields->Add("correct", &correct,
+              "fit the remaining residual with a Gaussian-kernel smoother");
+  fields->Add("smoothing", &smoothing,
+              "the correction's smoothing lambda (kernel diagonal = 1); 0: "
+              "chosen by cross-validation (or C_p when noise_mm is given)");
+  fields->SetGroup("");
+}
+
+bool RobustOptions::Check() const {
+  if (!std::isfinite(noise_mm)) {
+    spdlog::error("robust options: noise_mm must be finite");
+    return false;
+  }
+  if (!(margin >= 0) || !std::isfinite(margin)) {
+    spdlog::error("robust options: margin must be >= 0 and finite");
+    return false;
+  }
+  return true;
+}
+
+// One frame's state between the passes.
+struct RobustSolver::Work {
+  bool ok = false;
+  Eigen::VectorXd global;                  // N weights of the global fit
+  std::vector<std::pair<int, double>> global_nonzero;
+  std::vector<Vec3> disp;                  // K observed displacements d_k
+  std::vector<char> observed;              // K
+  std::vector<char> use_global;            // K
+  std::vector<Vec3> residual;              // K: the blend's, at the bundles
+};
+
+namespace {
+
+// The correction's candidate widths, in marker spacings (the median
+// distance of a bundle's site to its nearest site), and smoothings (the
+// kernel is 1 on its diagonal): log-spaced from interpolation of exact data
+// to no correction at all.
+constexpr double kWidthScales[] = {1.0, 2.0};
+
+std::vector<double> LambdaGrid() {
+  std::vector<double> grid;
+  for (int i = -4; i <= 16; ++i) grid.push_back(std::pow(10.0, i / 4.0));
+  return grid;
+}
+
+// The best (width index, lambda) for the residuals of every good frame
+// (K entries each, over the frame's observed bundles), by C_p for a known
+// sigma, else by generalised cross-validation; *fit receives the pooled fit
+// there.
+std::pair<int, double> ChooseSmoothing(
+    const std::vector<KernelSmoother>& smoothers,
+    const std::vector<const std::vector<char>*>& observed,
+    const std::vector<std::vector<Vec3>>& residuals, bool use_cp,
+    double sigma, KernelFit* best_fit) {
+  const std::vector<double> grid = LambdaGrid();
+  std::pair<int, double> best_choice{0, grid.back()};
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t w = 0; w < smoothers.size(); ++w) {
+    // Frames usually share one observed set: one basis per set.
+    std::map<std::vector<char>, KernelSmoother::Basis> bases;
+    std::vector<const KernelSmoother::Basis*> basis_of;
+    std::vector<Eigen::MatrixXd> z;
+    for (size_t i = 0; i < residuals.size(); ++i) {
+      auto found = bases.find(*observed[i]);
+      if (found == bases.end()) {
+        found = bases.emplace(*observed[i],
+                              smoothers[w].MakeBasis(*observed[i])).first;
+      }
+      basis_of.push_back(&found->second);
+      z.push_back(found->second.vectors.transpose() *
+                  smoothers[w].Data(found->second, residuals[i]));
+    }
+    for (double lambda : grid) {
+      KernelFit fit;
+      for (size_t i = 0; i < residuals.size(); ++i) {
+        fit.Add(smoothers[w].Fit(*basis_of[i], z[i], lambda));
+      }
+      const double score = use_cp ? fit.Cp(sigma) : fit.Gcv();
+      if (score < best) {
+        best = score;
+        best_choice = {static_cast<int>(w), lambda};
+        *best_fit = fit;
+      }
+    }
+  }
+  return best_choice;
+}
+
+// The ridge of the global fit for marker noise sigma: the minimiser of the
+// pooled Mallows' C_p of the ridge regression (bounds ignored) over a
+// log-spaced grid (mm^2 per unit of weight^2). With H = V diag(s) V^T the
+// normal matrix and c = V^T B^T d, the fit w = V diag(1 / (s + r)) c has
+//   RSS(r) = |d|^2 - sum_i c_i^2 (2 / (s_i + r) - s_i / (s_i + r)^2),
+//   tr(hat) = sum_i s_i / (s_i + r).
+double ChooseRidge(const BlendshapeSolver& global,
+                   const std::vector<const std::vector<char>*>& observed,
+                   const std::vector<Eigen::VectorXd>& disp, double sigma) {
+  if (!(sigma > 0)) return 0.0;
+  struct Eig {
+    Eigen::VectorXd s;
+    Eigen::MatrixXd v;
+  };
+  std::map<std::vector<char>, Eig> eigs;
+  struct Frame {
+    const Eig* eig;
+    Eigen::VectorXd c;
+    double d2;
+    double n;
+  };
+  std::vector<Frame> frames;
+  for (size_t i = 0; i < disp.size(); ++i) {
+    auto found = eigs.find(*observed[i]);
+    if (found == eigs.end()) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+          global.Normal(*observed[i]));
+      HMC_CHECK(eig.info() == Eigen::Success);
+      found = eigs.emplace(*observed[i],
+                           Eig{eig.eigenvalues().cwiseMax(0.0),
+                               eig.eigenvectors()})
+                  .first;
+    }
+    int m = 0;
+    for (char o : *observed[i]) m += o != 0;
+    frames.push_back({&found->second,
+                      found->second.v.transpose() * global.Project(disp[i]),
+                      disp[i].squaredNorm(), 3.0 * m});
+  }
+  double best_ridge = 0.0;
+  double best = std::numeric_limits<double>::infinity();
+  for (int e = -24; e <= 12; ++e) {
+    const double r = std::pow(10.0, e / 4.0);
+    double cp = 0.0;
+    for (const Frame& f : frames) {
+      double rss = f.d2, trace = 0.0;
+      for (int i = 0; i < f.c.size(); ++i) {
+        const double si = f.eig->s[i], den = si + r;
+        rss -= f.c[i] * f.c[i] * (2.0 / den - si / (den * den));
+        trace += si / den;
+      }
+      cp += rss - sigma * sigma * (f.n - 2.0 * trace);
+    }
+    if (cp < best) {
+      best = cp;
+      best_ridge = r;
+    }
+  }
+  return best_ridge;
+}
+
+}  // namespace
+
+RobustSolver::RobustSolver(const TriMesh& neutral, const ShapeData& data,
+                           const LgiSolver& lgi,
+                           const NaturalNeighbourWeights& nn,
+                           const BlendshapeSolver& global,
+                           const SolveOptions& solve_options,
+                           const RobustOptions& options)
+    : neutral_(neutral),
+      data_(data),
+      lgi_(lgi),
+      nn_(nn),
+      global_(global),
+      solve_options_(solve_options),
+      options_(options) {
+  const double spacing = MedianNearestSiteDistance(data.site_neutral, 10.0);
+  for (double scale : kWidthScales) {
+    smoothers_.emplace_back(data.site_neutral, scale * spacing);
+  }
+}
+
+Vec3 RobustSolver::BlendVertex(const Work& work, const FrameSolve& frame,
+                               int v) const {
+  Vec3 x = neutral_.V.row(v).transpose();
+  const float* b = data_.VertexDisplacements(v);
+  auto add = [&](const std::vector<std::pair<int, double>>& weights,
+                 double scale) {
+    for (const auto& [n, w] : weights) {
+      const double c = scale * w;
+      const float* bn = b + static_cast<size_t>(n) * 3;
+      x[0] += c * bn[0];
+      x[1] += c * bn[1];
+      x[2] += c * bn[2];
+    }
+  };
+  double global_share = 0.0;
+  for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
+           nn_.weights, v);
+       it; ++it) {
+    if (work.use_global[it.col()]) {
+      global_share += it.value();
+    } else {
+      add(frame.bundles[it.col()].weights, it.value());
+    }
+  }
+  if (global_share > 0) add(work.global_nonzero, global_share);
+  return x;
+}
+
+SolveResult RobustSolver::SolveSequence(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors) {
+  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
+  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
+  const int F = static_cast<int>(frames.size()), K = data_.num_bundles;
+  report_ = RobustReport();
+  SolveResult result;
+  result.frames.resize(F);
+  result.meshes.resize(F);
+  std::vector<Work> work(F);
+
+  // Step 1: lgi's choices and the global fit, frame by frame.
+  {
+    Progress progress("robust: lgi choice and global fit", F);
+    const FrameSolve* previous = nullptr;
+    for (int f = 0; f < F; ++f) {
+      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
+      FrameSolve& fs = result.frames[f];
+      progress.Advance();
+      if (!frame_errors.empty() && !frame_errors[f].empty()) {
+        fs.frame = frames[f].frame;
+        fs.jaw = pose;
+        fs.bundles.resize(K);
+        fs.reason = frame_errors[f];
+        continue;
+      }
+      fs = lgi_.SolveFrame(frames[f], pose, previous);
+      if (!fs.ok) continue;
+      Eigen::VectorXd w;
+      const FrameSolve global = global_.SolveFrame(frames[f], pose, &w, nullptr);
+      if (!global.ok) {
+        fs.ok = false;
+        fs.reason = global.reason;
+        continue;
+      }
+      previous = &fs;
+      Work& wk = work[f];
+      wk.ok = true;
+      wk.global = w;
+      for (int n = 0; n < w.size(); ++n) {
+        if (w[n] != 0) wk.global_nonzero.emplace_back(n, w[n]);
+      }
+      wk.observed.assign(K, 0);
+      wk.disp.assign(K, Vec3::Zero());
+      for (int k = 0; k < K; ++k) {
+        const BundleSolve& b = fs.bundles[k];
+        if (b.status != BundleSolve::Status::kInside &&
+            b.status != BundleSolve::Status::kProjected) {
+          continue;
+        }
+        wk.observed[k] = 1;
+        wk.disp[k] = UnskinBundle(data_, k, pose, b.observed) -
+                     data_.site_neutral.row(k).transpose();
+      }
+    }
+  }
+  LgiSolver::SmoothWeights(solve_options_.smooth_window, &result.frames);
+
+  std::vector<int> good;
+  std::vector<const std::vector<char>*> good_observed;
+  for (int f = 0; f < F; ++f) {
+    if (work[f].ok) {
+      good.push_back(f);
+      good_observed.push_back(&work[f].observed);
+    }
+  }
+
+  // Step 2: the noise level, from the global fit's residuals when not given.
+  std::vector<std::vector<Vec3>> global_residual(good.size());
+  for (size_t i = 0; i < good.size(); ++i) {
+    const Work& wk = work[good[i]];
+    global_residual[i].assign(K, Vec3::Zero());
+    for (int k = 0; k < K; ++k) {
+      if (wk.observed[k]) {
+        global_residual[i][k] =
+            wk.disp[k] - global_.SiteDisplacement(k, wk.global);
+      }
+    }
+  }
+  double sigma = options_.noise_mm;
+  if (sigma < 0) {
+    report_.noise_estimated = true;
+    sigma = 0;
+    if (!good.empty()) {
+      KernelFit fit;
+      ChooseSmoothing(smoothers_, good_observed, global_residual, false, 0.0,
+                      &fit);
+      sigma = std::sqrt(fit.NoiseVariance());
+    }
+  }
+  report_.noise_mm = sigma;
+
+  // Step 2b: the global fit again, with the ridge the noise calls for.
+  {
+    std::vector<Eigen::VectorXd> disp(good.size());
+    for (size_t i = 0; i < good.size(); ++i) {
+      disp[i] = Eigen::VectorXd::Zero(3 * K);
+      for (int k = 0; k < K; ++k) {
+        disp[i].segment<3>(3 * k) = work[good[i]].disp[k];
+      }
+    }
+    report_.ridge = ChooseRidge(global_, good_observed, disp, sigma);
+    if (report_.ridge > 0) {
+      ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+        Work& wk = work[good[i]];
+        wk.global = global_.FitWeights(wk.observed, disp[i], report_.ridge);
+        wk.global_nonzero.clear();
+        for (int n = 0; n < wk.global.size(); ++n) {
+          if (wk.global[n] != 0) wk.global_nonzero.emplace_back(n, wk.global[n]);
+        }
+        for (int k = 0; k < K; ++k) {
+          if (wk.observed[k]) {
+            global_residual[i][k] =
+                wk.disp[k] - global_.SiteDisplacement(k, wk.global);
+          }
+        }
+      }, 1);
+    }
+  }
+
+  // Step 3: per bundle, lgi's choice or the global weights.
+  // The noise the selection allows for: when estimated, also bounded by the
+  // median over bundles of the better model's neighbourhood error per
+  // coordinate, min(cost_lgi / 3 (m - 1), cost_global / 3 m). The global
+  // fit's residual counts expressions the dataset lacks as noise (held-out
+  // frames without noise estimate 0.2 mm); where lgi explains the
+  // neighbours exactly, this bound is 0.
+  double sel_sigma2 = sigma * sigma;
+  if (options_.noise_mm < 0) {
+    std::vector<double> v;
+    for (size_t i = 0; i < good.size(); ++i) {
+      const Work& wk = work[good[i]];
+      const FrameSolve& fs = result.frames[good[i]];
+      for (int k = 0; k < K; ++k) {
+        if (!wk.observed[k]) continue;
+        double cg = global_residual[i][k].squaredNorm();
+        int m = 1;
+        for (int j : lgi_.Neighbours(k)) {
+          if (!wk.observed[j]) continue;
+          cg += global_residual[i][j].squaredNorm();
+          ++m;
+        }
+        if (m < 2) continue;
+        v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
+                             cg / (3.0 * m)));
+      }
+    }
+    if (!v.empty()) {
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      sel_sigma2 = std::min(sel_sigma2, v[v.size() / 2]);
+    }
+  }
+  report_.selection_noise_mm = std::sqrt(sel_sigma2);
+  const double per_bundle = options_.margin * 3.0 * sel_sigma2;
+  for (size_t i = 0; i < good.size(); ++i) {
+    Work& wk = work[good[i]];
+    FrameSolve& fs = result.frames[good[i]];
+    wk.use_global.assign(K, 1);
+    for (int k = 0; k < K; ++k) {
+      if (!wk.observed[k]) continue;
+      double cost_global = global_residual[i][k].squaredNorm();
+      int m = 1;
+      for (int j : lgi_.Neighbours(k)) {
+        if (!wk.observed[j]) continue;
+        cost_global += global_residual[i][j].squaredNorm();
+        ++m;
+      }
+      if (options_.local && fs.bundles[k].cost + per_bundle * m <=
+                                cost_global + m * solve_options_.tie_mm2) {
+        wk.use_global[k] = 0;
+        ++report_.bundles_local;
+      } else {
+        ++report_.bundles_global;
+      }
+    }
+    for (int k = 0; k < K; ++k) {
+      if (!wk.use_global[k]) continue;
+      BundleSolve& b = fs.bundles[k];
+      b.weights = wk.global_nonzero;
+      b.simplex = -1;
+      b.corner_shapes.clear();
+    }
+  }
+
+  // Step 5's width and smoothing, from the blend's residuals at the bundles.
+  const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
+  int width_index = -1;
+  double lambda = 0.0;
+  if (options_.correct && !good.empty()) {
+    std::vector<std::vector<Vec3>> residuals(good.size());
+    ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+      Work& wk = work[good[i]];
+      const FrameSolve& fs = result.frames[good[i]];
+      wk.residual.assign(K, Vec3::Zero());
+      for (int k = 0; k < K; ++k) {
+        if (!wk.observed[k]) continue;
+        // The residual where the output is: the skinned surface point
+        // (each corner with its own jaw weight) against the observed
+        // bundle, taken back to unskinned space by the site's skinning
+        // matrix. (UnskinBundle's inverse assumes the neutral triangle, so
+        // d_k - blend(s_k) would show up to ~0.003 mm even for an exact
+        // dataset shape.)
+        const SurfacePoint& s = data_.sites[k];
+        Vec3 x = Vec3::Zero();
+        for (int c = 0; c < 3; ++c) {
+          const int v = neutral_.F(s.face, c);
+          const Vec3 xv = BlendVertex(wk, fs, v);
+          x += s.bary[c] *
+               (rig ? SkinPoint(*rig, fs.jaw, xv, rig->weights[v]) : xv);
+        }
+        const Vec3 r = fs.bundles[k].observed - x;
+        if (rig) {
+          const double w = data_.site_jaw_weight[k];
+          const Mat3 a = (1.0 - w) * Mat3::Identity() +
+                         w * rig->Transform(fs.jaw).linear();
+          wk.residual[k] = a.partialPivLu().solve(r);
+        } else {
+          wk.residual[k] = r;
+        }
+      }
+      // Only the residual the noise does not explain: each bundle's is
+      // shrunk by its neighbourhood's energy against the noise's,
+      // max(0, 1 - 3 sigma^2 m / sum |r_j|^2) (positive-part James-Stein).
+      residuals[i].assign(K, Vec3::Zero());
+      for (int k = 0; k < K; ++k) {
+        if (!wk.observed[k]) continue;
+        double energy = wk.residual[k].squaredNorm();
+        int m = 1;
+        for (int j : lgi_.Neighbours(k)) {
+          if (!wk.observed[j]) continue;
+          energy += wk.residual[j].squaredNorm();
+          ++m;
+        }
+        const double noise = 3.0 * sel_sigma2 * m;
+        const double keep =
+            energy > noise ? 1.0 - noise / energy : 0.0;
+        residuals[i][k] = keep * wk.residual[k];
+      }
+      wk.residual = residuals[i];
+    });
+    KernelFit fit;
+    double noise = options_.noise_mm;
+    if (noise < 0) {
+      ChooseSmoothing(smoothers_, good_observed, residuals, false, 0.0, &fit);
+      noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
+    }
+    std::tie(width_index, lambda) = ChooseSmoothing(
+        smoothers_, good_observed, residuals, true, noise, &fit);
+    if (options_.smoothing > 0) lambda = options_.smoothing;
+    if (!vertex_kernel_.count(width_index)) {
+      vertex_kernel_[width_index] = GaussianKernelMatrix(
+          neutral_.V, data_.site_neutral, smoothers_[width_index].width(),
+          1e-6);
+    }
+    report_.width_mm = smoothers_[width_index].width();
+  }
+  report_.lambda = lambda;
+
+  // Steps 4-6 per frame.
+  Progress progress("robust: blend", F);
+  SolveSummary& s = result.summary;
+  s.frames = F;
+  const MatX3d* last_good = nullptr;
+  std::map<std::vector<char>, KernelSmoother::Basis> bases;
+  for (int f = 0; f < F; ++f) {
+    FrameSolve& fs = result.frames[f];
+    const Work& wk = work[f];
+    if (wk.ok) {
+      MatX3d out(data_.num_vertices, 3);
+      ParallelFor(
+          0, data_.num_vertices,
+          [&](int64_t v) {
+            out.row(v) = BlendVertex(wk, fs, static_cast<int>(v)).transpose();
+          },
+          512);
+      if (width_index >= 0) {
+        const KernelSmoother& smoother = smoothers_[width_index];
+        auto found = bases.find(wk.observed);
+        if (found == bases.end()) {
+          found = bases.emplace(wk.observed, smoother.MakeBasis(wk.observed))
+                      .first;
+        }
+        const KernelSmoother::Basis& basis = found->second;
+        out += vertex_kernel_.at(width_index) *
+               smoother.Coefficients(basis, smoother.Data(basis, wk.residual),
+                                     lambda);
+      }
+      result.meshes[f] = rig ? Skin(*rig, fs.jaw, out) : out;
+      last_good = &result.meshes[f];
+      for (int k = 0; k < K; ++k) {
+        BundleSolve& b = fs.bundles[k];
+        if (wk.observed[k]) {
+          b.residual = (EvaluateSurfacePoint(data_.sites[k], neutral_.F,
+                                             result.meshes[f]) -
+                        b.observed)
+                           .norm();
+        }
+      }
+    } else {
+      ++s.bad_frames;
+      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
+      result.meshes[f] =
+          last_good ? *last_good
+                    : (rig ? Skin(*rig, fs.jaw, neutral_.V) : neutral_.V);
+    }
+    for (const BundleSolve& b : fs.bundles) {
+      switch (b.status) {
+        case BundleSolve::Status::kInside: ++s.bundles_inside; break;
+        case BundleSolve::Status::kProjected:
+          ++s.bundles_projected;
+          s.max_projection = std::max(s.max_projection, b.distance);
+          break;
+        case BundleSolve::Status::kFilled: ++s.bundles_filled; break;
+        case BundleSolve::Status::kUnused: break;
+      }
+    }
+    progress.Advance();
+  }
+  spdlog::info(
+      "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice), global "
+      "ridge {:.3g}, correction width {:.1f} mm, smoothing {:.3g}; {} "
+      "bundles took the local lgi choice, {} the global fit",
+      report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
+      report_.selection_noise_mm, report_.ridge, report_.width_mm, report_.lambda, report_.bundles_local,
+      report_.bundles_global);
+  return result;
+}
+
+}  // namespace hmc

@@ -1,0 +1,130 @@
+// The `robust` solve, `hmc solve`'s default: local geometric indexing where
+// the local data explain the markers better than a global fit can, a bounded
+// global blendshape fit where they do not, and a smoothing spline for the
+// residual that the marker noise does not explain (docs/method.md, "The
+// robust default", gives the measurements behind each step).
+//
+// Per frame (unskinned shapes and bundles, as lgi; d_k the observed
+// displacement of bundle k's surface point):
+//   1. lgi's per-bundle choice u_k (blending/lgi_solver.h, steps 1-5) and
+//      the bounded global fit w (blending/baseline_blendshape.h) with its
+//      residuals r_k = d_k - B_k w.
+//   2. The marker noise sigma (std per coordinate): given, or estimated from
+//      the global fit's residuals of the whole sequence by generalised
+//      cross-validation of a Gaussian-kernel smoother
+//      (blending/kernel_smoother.h): sigma^2 = RSS / (3 tr(I - H)) at the
+//      chosen width and smoothing.
+//      The global fit is then solved again with the ridge r |w|^2 that
+//      minimises Mallows' C_p for that noise (r = 0 without noise): the
+//      bounded fit alone follows the noise, the ridge averages it out.
+//   3. Per bundle, lgi's choice replaces the global weights where it
+//      explains the bundle's neighbourhood (itself and its natural
+//      neighbours) better than the global fit by more than the noise can:
+//        cost_lgi + margin * 3 sigma^2 * m <= sum_{j in nbhd} |r_j|^2 + tie,
+//      with m the observed bundles of the neighbourhood and tie = m *
+//      solve.tie_mm2. When sigma is estimated, the sigma of this test is
+//      also bounded by the median over bundles of the better model's
+//      neighbourhood error, min(cost_lgi / 3 (m - 1), cost_global / 3 m):
+//      the global fit's residual counts expressions the dataset lacks as
+//      noise, lgi's does not where it explains the neighbours. Noise-free, the better of the two wins, and lgi where
+//      both are exact (a dataset shape: lgi reproduces it everywhere, the
+//      global fit only at the bundles); under noise, only local structure
+//      larger than the noise switches to lgi.
+//   4. Natural-neighbour blend of the per-bundle weights: x*(v) = x0(v) +
+//      sum_k lambda_k(v) (global_k ? sum_n w_n b*_n(v) : sum_n u_kn b*_n(v)).
+//   5. The blend's residuals at the bundles (measured on the skinned
+//      output, taken back to unskinned space by the site's skinning matrix)
+//      are first shrunk by what the noise explains: bundle k's residual is
+//      scaled by max(0, 1 - 3 sigma_c^2 m / sum_{j in nbhd} |r_j|^2)
+//      (positive-part James-Stein; sigma_c the noise of step 3). Then a
+//      Gaussian-kernel smoother (blending/kernel_smoother.h) is fitted to
+//      them with one width and smoothing for the sequence, by Mallows' C_p
+//      for the given sigma, or when estimated for max(sigma_c, the noise
+//      generalised cross-validation implies): noise-free data with
+//      expressions the dataset lacks are then smoothed as cross-validation
+//      predicts best between the bundles, noisy data are not followed. The
+//      correction fades away from the bundles, leaving the far field to the
+//      dataset.
+//   6. Skin with the frame's jaw pose.
+// Bad frames follow the lgi conventions (flagged, previous good mesh kept).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/SparseCore>
+
+#include "blending/baseline_blendshape.h"
+#include "blending/kernel_smoother.h"
+#include "blending/lgi_solver.h"
+#include "blending/natural_neighbour.h"
+#include "core/options.h"
+
+namespace hmc {
+
+struct RobustOptions {
+  double noise_mm = -1.0;  // marker noise, std per coordinate (mm); < 0:
+                           // estimated from the data
+  bool local = true;       // use lgi's local choice where it explains the
+                           // neighbourhood better (false: global fit only)
+  double margin = 1.0;     // lgi must beat the global fit's neighbourhood
+                           // cost by this many noise variances per bundle
+  bool correct = true;     // kernel correction of the residual
+  double smoothing = 0.0;  // the correction's lambda (> 0: fixed; 0: chosen
+                           // from the data)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// What the solve of the last sequence estimated (for logs and tests).
+struct RobustReport {
+  double noise_mm = 0.0;      // sigma used (given or estimated)
+  double selection_noise_mm = 0.0;  // sigma the choice of step 3 allowed
+  bool noise_estimated = false;
+  double ridge = 0.0;         // of the global fit (mm^2 per weight^2)
+  double width_mm = 0.0;      // Gaussian width of the correction (mm)
+  double lambda = 0.0;        // its smoothing (0: no correction)
+  int64_t bundles_local = 0;  // observed bundles that took lgi's choice
+  int64_t bundles_global = 0;
+};
+
+class RobustSolver {
+ public:
+  // All referenced objects must outlive the solver; global must be bounded.
+  RobustSolver(const TriMesh& neutral, const ShapeData& data,
+               const LgiSolver& lgi, const NaturalNeighbourWeights& nn,
+               const BlendshapeSolver& global,
+               const SolveOptions& solve_options,
+               const RobustOptions& options);
+
+  // Same inputs, outputs and bad-frame conventions as
+  // LgiSolver::SolveSequence. Each bundle's weights are its lgi choice or
+  // the global weights; the residuals are the output mesh's.
+  SolveResult SolveSequence(const std::vector<BundleFrame>& frames,
+                            const std::vector<JawPose>& jaw,
+                            const std::vector<std::string>& frame_errors = {});
+
+  const RobustReport& report() const { return report_; }
+
+ private:
+  struct Work;
+  // The unskinned blend at vertex v (step 4).
+  Vec3 BlendVertex(const Work& work, const FrameSolve& frame, int v) const;
+
+  const TriMesh& neutral_;
+  const ShapeData& data_;
+  const LgiSolver& lgi_;
+  const NaturalNeighbourWeights& nn_;
+  const BlendshapeSolver& global_;
+  SolveOptions solve_options_;
+  RobustOptions options_;
+  RobustReport report_;
+  // Smoothers of the candidate widths (kWidthScales marker spacings) and,
+  // once a width was chosen, its kernel at the vertices (V x K).
+  std::vector<KernelSmoother> smoothers_;
+  std::map<int, Eigen::SparseMatrix<double, Eigen::RowMajor>> vertex_kernel_;
+};
+
+}  // namespace hmc

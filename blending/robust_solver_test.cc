@@ -1,0 +1,229 @@
+#include "blending/robust_solver.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+
+#include "blending/solve_index_cache.h"
+#include "core/jaw.h"
+#include "core/parallel.h"
+#include "indexing/lgi_test_actor.h"
+
+namespace hmc {
+namespace {
+
+BlendshapeOptions Bounded() {
+  BlendshapeOptions o;
+  o.bounded = true;
+  return o;
+}
+
+// A small actor with its real lgi model and the bounded global fit.
+struct RobustFixture {
+  explicit RobustFixture(int seed, bool jaw, RobustOptions options = {})
+      : actor(MakeActor(seed, jaw)),
+        model(BuildLgiModel(actor, IndexOptions(), SmallNn())),
+        lgi(actor.neutral, model.data, model.index, model.nn, IndexOptions(),
+            SolveOptions()),
+        global(actor.neutral, model.data, Bounded()),
+        robust(actor.neutral, model.data, lgi, model.nn, global,
+               SolveOptions(), options) {}
+
+  static Actor MakeActor(int seed, bool jaw) {
+    testing::LgiTestActorOptions o;
+    o.seed = seed;
+    o.jaw = jaw;
+    return testing::MakeLgiTestActor(o);
+  }
+  static NaturalNeighbourOptions SmallNn() {
+    NaturalNeighbourOptions nn;
+    nn.uv_resolution = 256;
+    return nn;
+  }
+
+  // The markers' surface points on `x` (V x 3), plus Gaussian noise of std
+  // `noise` per coordinate, as one bundle frame.
+  BundleFrame Bundles(int frame, const MatX3d& x, double noise,
+                      std::mt19937* rng) const {
+    std::normal_distribution<double> n(0.0, noise > 0 ? noise : 1.0);
+    BundleFrame b;
+    b.frame = frame;
+    for (const Marker& m : actor.markers) {
+      Vec3 p = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
+      if (noise > 0) p += Vec3(n(*rng), n(*rng), n(*rng));
+      b.bundles[m.name] = p;
+    }
+    return b;
+  }
+
+  Actor actor;
+  LgiModel model;
+  LgiSolver lgi;
+  BlendshapeSolver global;
+  RobustSolver robust;
+};
+
+// Mean vertex error of a solve against the truth meshes (mm).
+double MeanError(const SolveResult& result, const std::vector<MatX3d>& truth) {
+  double sum = 0;
+  int64_t count = 0;
+  for (size_t f = 0; f < truth.size(); ++f) {
+    sum += (result.meshes[f] - truth[f]).rowwise().norm().sum();
+    count += truth[f].rows();
+  }
+  return sum / count;
+}
+
+class RobustSeeds : public ::testing::TestWithParam<int> {};
+
+// Verification stays exact: every dataset shape, noise-free, with and
+// without a jaw rig, reconstructs everywhere (not only at the bundles), and
+// the noise estimated from such data is ~0.
+TEST_P(RobustSeeds, DatasetShapesReconstructExactly) {
+  for (bool jaw : {false, true}) {
+    SCOPED_TRACE(jaw);
+    RobustFixture fx(GetParam(), jaw);
+    std::mt19937 rng(GetParam());
+    std::vector<BundleFrame> frames;
+    std::vector<MatX3d> truth;
+    std::vector<JawPose> poses;
+    for (size_t n = 0; n < fx.actor.shapes.size(); ++n) {
+      truth.push_back(fx.actor.ShapePositions(static_cast<int>(n)));
+      frames.push_back(
+          fx.Bundles(static_cast<int>(n) + 1, truth.back(), 0.0, &rng));
+      poses.push_back(fx.actor.shapes[n].jaw);
+    }
+    const SolveResult result =
+        fx.robust.SolveSequence(frames, jaw ? poses : std::vector<JawPose>{});
+    double worst = 0;
+    for (size_t f = 0; f < truth.size(); ++f) {
+      ASSERT_TRUE(result.frames[f].ok) << result.frames[f].reason;
+      worst = std::max(worst,
+                       (result.meshes[f] - truth[f]).rowwise().norm().maxCoeff());
+    }
+    EXPECT_LE(worst, 1e-3);
+    EXPECT_LT(fx.robust.report().noise_mm, 1e-3);
+    EXPECT_TRUE(fx.robust.report().noise_estimated);
+  }
+}
+
+// Under marker noise the estimate finds its level and the robust solve is
+// more accurate than the paper's lgi, which passes through every noisy
+// bundle. It is not asserted to beat the bounded global fit here: on this
+// small actor (few shapes, two-shape mixtures) it does not on seeds 2 and 3
+// (docs/method.md, "The robust default", gives the numbers).
+TEST_P(RobustSeeds, NoisyMarkersAreAveragedNotFollowed) {
+  RobustFixture fx(GetParam(), /*jaw=*/false);
+  std::mt19937 rng(500 + GetParam());
+  std::uniform_int_distribution<int> pick(
+      0, static_cast<int>(fx.actor.shapes.size()) - 1);
+  std::uniform_real_distribution<double> t(0.2, 0.8);
+  const double sigma = 0.3;
+  std::vector<BundleFrame> frames;
+  std::vector<MatX3d> truth;
+  for (int f = 0; f < 12; ++f) {
+    const int a = pick(rng), b = pick(rng);
+    const double s = t(rng);
+    truth.push_back(fx.actor.neutral.V +
+                    s * fx.actor.shapes[a].displacement +
+                    (1 - s) * fx.actor.shapes[b].displacement);
+    frames.push_back(fx.Bundles(f + 1, truth.back(), sigma, &rng));
+  }
+  const SolveResult robust = fx.robust.SolveSequence(frames, {});
+  EXPECT_NEAR(fx.robust.report().noise_mm, sigma, 0.25 * sigma);
+  EXPECT_GT(fx.robust.report().ridge, 0.0);
+  const double e_robust = MeanError(robust, truth);
+  const double e_lgi = MeanError(fx.lgi.SolveSequence(frames, {}), truth);
+  const double e_global = MeanError(fx.global.SolveSequence(frames, {}), truth);
+  EXPECT_LT(e_robust, e_lgi);
+  std::printf("seed %d: mean error robust %.4f, lgi %.4f, bounded %.4f mm\n",
+              GetParam(), e_robust, e_lgi, e_global);
+  // A given noise level is used as given.
+  RobustOptions given;
+  given.noise_mm = sigma;
+  RobustFixture fixed(GetParam(), /*jaw=*/false, given);
+  fixed.robust.SolveSequence(frames, {});
+  EXPECT_EQ(fixed.robust.report().noise_mm, sigma);
+  EXPECT_FALSE(fixed.robust.report().noise_estimated);
+}
+
+TEST_P(RobustSeeds, BadFrameRepeatsThePreviousGoodMesh) {
+  RobustFixture fx(GetParam(), /*jaw=*/false);
+  std::mt19937 rng(600 + GetParam());
+  std::vector<BundleFrame> frames;
+  for (int f = 0; f < 3; ++f) {
+    frames.push_back(fx.Bundles(
+        f + 1, fx.actor.ShapePositions(f % fx.actor.shapes.size()), 0.0, &rng));
+  }
+  frames[2].bundles.clear();  // nothing observed: bad
+  const SolveResult result =
+      fx.robust.SolveSequence(frames, {}, {"", "tracking lost", ""});
+  ASSERT_TRUE(result.frames[0].ok);
+  EXPECT_FALSE(result.frames[1].ok);
+  EXPECT_EQ(result.frames[1].reason, "tracking lost");
+  EXPECT_FALSE(result.frames[2].ok);
+  EXPECT_EQ(result.summary.bad_frames, 2);
+  EXPECT_EQ((result.meshes[1] - result.meshes[0]).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((result.meshes[2] - result.meshes[0]).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Expressions beyond the dataset (shapes exaggerated 1.4x: the bundles fall
+// outside their clouds and lgi projects them), noise-free: the correction
+// takes the surface to the bundles, where lgi leaves the projection's error.
+TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
+  RobustFixture fx(GetParam(), /*jaw=*/false);
+  std::mt19937 rng(800 + GetParam());
+  std::vector<BundleFrame> frames;
+  std::vector<MatX3d> truth;
+  for (size_t n = 0; n < fx.actor.shapes.size(); ++n) {
+    truth.push_back(fx.actor.neutral.V + 1.4 * fx.actor.shapes[n].displacement);
+    frames.push_back(fx.Bundles(static_cast<int>(n) + 1, truth.back(), 0.0, &rng));
+  }
+  const SolveResult robust = fx.robust.SolveSequence(frames, {});
+  const SolveResult lgi = fx.lgi.SolveSequence(frames, {});
+  EXPECT_GT(lgi.summary.bundles_projected, 0);
+  // ~0 against the noise levels that matter (0.1-1 mm).
+  EXPECT_LT(fx.robust.report().selection_noise_mm, 0.01);
+  EXPECT_GT(fx.robust.report().lambda, 0.0);
+  double worst_robust = 0, worst_lgi = 0;
+  for (size_t f = 0; f < frames.size(); ++f) {
+    for (size_t k = 0; k < fx.actor.markers.size(); ++k) {
+      worst_robust = std::max(worst_robust, robust.frames[f].bundles[k].residual);
+      worst_lgi = std::max(worst_lgi, lgi.frames[f].bundles[k].residual);
+    }
+  }
+  EXPECT_LT(worst_robust, 0.5 * worst_lgi);
+  const double e_robust = MeanError(robust, truth), e_lgi = MeanError(lgi, truth);
+  std::printf("seed %d: beyond the data, mean error robust %.4f, lgi %.4f mm; "
+              "worst bundle residual %.4f, %.4f mm\n",
+              GetParam(), e_robust, e_lgi, worst_robust, worst_lgi);
+  EXPECT_LT(e_robust, e_lgi);
+}
+
+TEST_P(RobustSeeds, SameResultForAnyThreadCount) {
+  RobustFixture fx(GetParam(), /*jaw=*/true);
+  std::mt19937 rng(700 + GetParam());
+  std::vector<BundleFrame> frames;
+  for (int f = 0; f < 3; ++f) {
+    frames.push_back(fx.Bundles(
+        f + 1, fx.actor.ShapePositions(f % fx.actor.shapes.size()), 0.2, &rng));
+  }
+  SolveResult one, two;
+  {
+    ThreadLimit limit(1);
+    one = fx.robust.SolveSequence(frames, {});
+  }
+  {
+    ThreadLimit limit(2);
+    two = fx.robust.SolveSequence(frames, {});
+  }
+  for (size_t f = 0; f < frames.size(); ++f) {
+    EXPECT_EQ((one.meshes[f] - two.meshes[f]).cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, RobustSeeds, ::testing::Values(1, 2, 3));
+
+}  // namespace
+}  // namespace hmc
