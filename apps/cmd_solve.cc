@@ -203,8 +203,8 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
 }  // namespace
 
 HMC_COMMAND(Solve, "", "solve",
-            "Solve meshes from bundles (local geometric indexing or a "
-            "baseline: --method)") {
+            "Solve meshes from bundles (default: local geometric indexing "
+            "with a noise-aware global fit; other methods: --method)") {
   auto cmd = std::make_shared<SolveCommand>();
   app->add_option("--actor", cmd->actor_dir, "Actor package folder")
       ->required()

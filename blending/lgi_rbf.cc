@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 
+#include "blending/kernel_smoother.h"
 #include "core/error.h"
 #include "core/jaw.h"
 #include "core/logging.h"
@@ -76,22 +77,7 @@ LgiRbfSolver::LgiRbfSolver(const TriMesh& neutral, const ShapeData& data,
     // Scale-free default: the kernel spans about one marker spacing, so the
     // weight field neither collapses to spikes at the sites nor smears a
     // bundle's expression across distant ones.
-    std::vector<double> nearest;
-    for (int k = 0; k < K; ++k) {
-      double best = std::numeric_limits<double>::infinity();
-      for (int j = 0; j < K; ++j) {
-        const double d = (sites.row(k) - sites.row(j)).norm();
-        if (j != k && d > 1e-9) best = std::min(best, d);
-      }
-      if (std::isfinite(best)) nearest.push_back(best);
-    }
-    double median = 10.0;
-    if (!nearest.empty()) {
-      std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2,
-                       nearest.end());
-      median = nearest[nearest.size() / 2];
-    }
-    sigma_ = options.sigma_scale * median;
+    sigma_ = options.sigma_scale * MedianNearestSiteDistance(sites, 10.0);
   }
   kernel_.resize(K, K);
   for (int k = 0; k < K; ++k) {
@@ -106,23 +92,8 @@ LgiRbfSolver::LgiRbfSolver(const TriMesh& neutral, const ShapeData& data,
                 "lgi-rbf: the Gaussian kernel matrix is not positive "
                 "definite (coincident bundle sites and ridge 0?)");
   // Per vertex, the kernel to every site within the cutoff radius.
-  const double radius2 = -2 * sigma_ * sigma_ * std::log(options.cutoff);
-  std::vector<std::vector<std::pair<int, double>>> rows(V);
-  ParallelFor(
-      0, V,
-      [&](int64_t v) {
-        for (int k = 0; k < K; ++k) {
-          const double d2 = (neutral.V.row(v) - sites.row(k)).squaredNorm();
-          if (d2 <= radius2) rows[v].emplace_back(k, Gaussian(d2, sigma_));
-        }
-      },
-      256);
-  std::vector<Eigen::Triplet<double>> triplets;
-  for (int v = 0; v < V; ++v) {
-    for (const auto& [k, g] : rows[v]) triplets.emplace_back(v, k, g);
-  }
-  vertex_kernel_.resize(V, K);
-  vertex_kernel_.setFromTriplets(triplets.begin(), triplets.end());
+  vertex_kernel_ =
+      GaussianKernelMatrix(neutral.V, sites, sigma_, options.cutoff);
 }
 
 bool LgiRbfSolver::Blend(FrameSolve* frame, MatX3d* mesh) const {

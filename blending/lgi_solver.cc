@@ -603,6 +603,20 @@ void LgiSolver::SmoothWeights(int window, std::vector<FrameSolve>* frames) {
   });
 }
 
+void SolveSummary::Count(const FrameSolve& frame) {
+  for (const BundleSolve& b : frame.bundles) {
+    switch (b.status) {
+      case BundleSolve::Status::kInside: ++bundles_inside; break;
+      case BundleSolve::Status::kProjected:
+        ++bundles_projected;
+        max_projection = std::max(max_projection, b.distance);
+        break;
+      case BundleSolve::Status::kFilled: ++bundles_filled; break;
+      case BundleSolve::Status::kUnused: break;
+    }
+  }
+}
+
 SolveResult LgiSolver::SolveSequence(
     const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
     const std::vector<std::string>& frame_errors) const {
@@ -652,17 +666,7 @@ SolveResult LgiSolver::SolveSequence(
                                : neutral_.V;
       }
     }
-    for (const auto& b : fs.bundles) {
-      switch (b.status) {
-        case BundleSolve::Status::kInside: ++s.bundles_inside; break;
-        case BundleSolve::Status::kProjected:
-          ++s.bundles_projected;
-          s.max_projection = std::max(s.max_projection, b.distance);
-          break;
-        case BundleSolve::Status::kFilled: ++s.bundles_filled; break;
-        case BundleSolve::Status::kUnused: break;
-      }
-    }
+    s.Count(fs);
     progress.Advance();
   }
   return result;

@@ -95,6 +95,8 @@ struct SolveSummary {
   int64_t bundles_projected = 0;
   int64_t bundles_filled = 0;
   double max_projection = 0.0;  // mm
+  // Adds the frame's bundles to the counts by status.
+  void Count(const FrameSolve& frame);
   std::string BriefReport() const;
 };
 

@@ -34,7 +34,7 @@ void RobustOptions::Register(OptionFields* fields) {
               "fit the remaining residual with a Gaussian-kernel smoother");
   fields->Add("smoothing", &smoothing,
               "the correction's smoothing lambda (kernel diagonal = 1); 0: "
-              "chosen by cross-validation (or C_p when noise_mm is given)");
+              "chosen per sequence by C_p");
   fields->SetGroup("");
 }
 
@@ -198,6 +198,19 @@ RobustSolver::RobustSolver(const TriMesh& neutral, const ShapeData& data,
   for (double scale : kWidthScales) {
     smoothers_.emplace_back(data.site_neutral, scale * spacing);
   }
+}
+
+double RobustSolver::NeighbourhoodEnergy(const std::vector<Vec3>& r,
+                                         const Work& work, int k,
+                                         int* count) const {
+  double energy = r[k].squaredNorm();
+  *count = 1;
+  for (int j : lgi_.Neighbours(k)) {
+    if (!work.observed[j]) continue;
+    energy += r[j].squaredNorm();
+    ++*count;
+  }
+  return energy;
 }
 
 Vec3 RobustSolver::BlendVertex(const Work& work, const FrameSolve& frame,
@@ -364,13 +377,8 @@ SolveResult RobustSolver::SolveSequence(
       const FrameSolve& fs = result.frames[good[i]];
       for (int k = 0; k < K; ++k) {
         if (!wk.observed[k]) continue;
-        double cg = global_residual[i][k].squaredNorm();
-        int m = 1;
-        for (int j : lgi_.Neighbours(k)) {
-          if (!wk.observed[j]) continue;
-          cg += global_residual[i][j].squaredNorm();
-          ++m;
-        }
+        int m = 0;
+        const double cg = NeighbourhoodEnergy(global_residual[i], wk, k, &m);
         if (m < 2) continue;
         v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
                              cg / (3.0 * m)));
@@ -389,13 +397,9 @@ SolveResult RobustSolver::SolveSequence(
     wk.use_global.assign(K, 1);
     for (int k = 0; k < K; ++k) {
       if (!wk.observed[k]) continue;
-      double cost_global = global_residual[i][k].squaredNorm();
-      int m = 1;
-      for (int j : lgi_.Neighbours(k)) {
-        if (!wk.observed[j]) continue;
-        cost_global += global_residual[i][j].squaredNorm();
-        ++m;
-      }
+      int m = 0;
+      const double cost_global =
+          NeighbourhoodEnergy(global_residual[i], wk, k, &m);
       if (options_.local && fs.bundles[k].cost + per_bundle * m <=
                                 cost_global + m * solve_options_.tie_mm2) {
         wk.use_global[k] = 0;
@@ -455,13 +459,8 @@ SolveResult RobustSolver::SolveSequence(
       residuals[i].assign(K, Vec3::Zero());
       for (int k = 0; k < K; ++k) {
         if (!wk.observed[k]) continue;
-        double energy = wk.residual[k].squaredNorm();
-        int m = 1;
-        for (int j : lgi_.Neighbours(k)) {
-          if (!wk.observed[j]) continue;
-          energy += wk.residual[j].squaredNorm();
-          ++m;
-        }
+        int m = 0;
+        const double energy = NeighbourhoodEnergy(wk.residual, wk, k, &m);
         const double noise = 3.0 * sel_sigma2 * m;
         const double keep =
             energy > noise ? 1.0 - noise / energy : 0.0;
@@ -534,17 +533,7 @@ SolveResult RobustSolver::SolveSequence(
           last_good ? *last_good
                     : (rig ? Skin(*rig, fs.jaw, neutral_.V) : neutral_.V);
     }
-    for (const BundleSolve& b : fs.bundles) {
-      switch (b.status) {
-        case BundleSolve::Status::kInside: ++s.bundles_inside; break;
-        case BundleSolve::Status::kProjected:
-          ++s.bundles_projected;
-          s.max_projection = std::max(s.max_projection, b.distance);
-          break;
-        case BundleSolve::Status::kFilled: ++s.bundles_filled; break;
-        case BundleSolve::Status::kUnused: break;
-      }
-    }
+    s.Count(fs);
     progress.Advance();
   }
   spdlog::info(

@@ -110,6 +110,10 @@ class RobustSolver {
 
  private:
   struct Work;
+  // sum |r_j|^2 over observed bundle k and its observed natural neighbours;
+  // *count: how many.
+  double NeighbourhoodEnergy(const std::vector<Vec3>& r, const Work& work,
+                             int k, int* count) const;
   // The unskinned blend at vertex v (step 4).
   Vec3 BlendVertex(const Work& work, const FrameSolve& frame, int v) const;
 
