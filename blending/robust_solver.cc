@@ -75,12 +75,34 @@ std::vector<double> LambdaGrid() {
   return grid;
 }
 
+// The kernel decompositions of one sequence, per width and observed set
+// (frames usually share one set), each computed once.
+class BasisCache {
+ public:
+  explicit BasisCache(const std::vector<KernelSmoother>& smoothers)
+      : smoothers_(smoothers), bases_(smoothers.size()) {}
+  const KernelSmoother::Basis& Get(size_t width,
+                                   const std::vector<char>& observed) {
+    auto found = bases_[width].find(observed);
+    if (found == bases_[width].end()) {
+      found = bases_[width]
+                  .emplace(observed, smoothers_[width].MakeBasis(observed))
+                  .first;
+    }
+    return found->second;
+  }
+
+ private:
+  const std::vector<KernelSmoother>& smoothers_;
+  std::vector<std::map<std::vector<char>, KernelSmoother::Basis>> bases_;
+};
+
 // The best (width index, lambda) for the residuals of every good frame
 // (K entries each, over the frame's observed bundles), by C_p for a known
 // sigma, else by generalised cross-validation; *fit receives the pooled fit
 // there.
 std::pair<int, double> ChooseSmoothing(
-    const std::vector<KernelSmoother>& smoothers,
+    const std::vector<KernelSmoother>& smoothers, BasisCache* cache,
     const std::vector<const std::vector<char>*>& observed,
     const std::vector<std::vector<Vec3>>& residuals, bool use_cp,
     double sigma, KernelFit* best_fit) {
@@ -88,19 +110,13 @@ std::pair<int, double> ChooseSmoothing(
   std::pair<int, double> best_choice{0, grid.back()};
   double best = std::numeric_limits<double>::infinity();
   for (size_t w = 0; w < smoothers.size(); ++w) {
-    // Frames usually share one observed set: one basis per set.
-    std::map<std::vector<char>, KernelSmoother::Basis> bases;
     std::vector<const KernelSmoother::Basis*> basis_of;
     std::vector<Eigen::MatrixXd> z;
     for (size_t i = 0; i < residuals.size(); ++i) {
-      auto found = bases.find(*observed[i]);
-      if (found == bases.end()) {
-        found = bases.emplace(*observed[i],
-                              smoothers[w].MakeBasis(*observed[i])).first;
-      }
-      basis_of.push_back(&found->second);
-      z.push_back(found->second.vectors.transpose() *
-                  smoothers[w].Data(found->second, residuals[i]));
+      const KernelSmoother::Basis& basis = cache->Get(w, *observed[i]);
+      basis_of.push_back(&basis);
+      z.push_back(basis.vectors.transpose() *
+                  smoothers[w].Data(basis, residuals[i]));
     }
     for (double lambda : grid) {
       KernelFit fit;
@@ -309,6 +325,8 @@ SolveResult RobustSolver::SolveSequence(
     }
   }
 
+  BasisCache bases(smoothers_);
+
   // Step 2: the noise level, from the global fit's residuals when not given.
   std::vector<std::vector<Vec3>> global_residual(good.size());
   for (size_t i = 0; i < good.size(); ++i) {
@@ -327,7 +345,8 @@ SolveResult RobustSolver::SolveSequence(
     sigma = 0;
     if (!good.empty()) {
       KernelFit fit;
-      ChooseSmoothing(smoothers_, good_observed, global_residual, false, 0.0,
+      ChooseSmoothing(smoothers_, &bases, good_observed, global_residual,
+                      false, 0.0,
                       &fit);
       sigma = std::sqrt(fit.NoiseVariance());
     }
@@ -471,11 +490,12 @@ SolveResult RobustSolver::SolveSequence(
     KernelFit fit;
     double noise = options_.noise_mm;
     if (noise < 0) {
-      ChooseSmoothing(smoothers_, good_observed, residuals, false, 0.0, &fit);
+      ChooseSmoothing(smoothers_, &bases, good_observed, residuals, false,
+                      0.0, &fit);
       noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
     }
     std::tie(width_index, lambda) = ChooseSmoothing(
-        smoothers_, good_observed, residuals, true, noise, &fit);
+        smoothers_, &bases, good_observed, residuals, true, noise, &fit);
     if (options_.smoothing > 0) lambda = options_.smoothing;
     if (!vertex_kernel_.count(width_index)) {
       vertex_kernel_[width_index] = GaussianKernelMatrix(
@@ -491,7 +511,6 @@ SolveResult RobustSolver::SolveSequence(
   SolveSummary& s = result.summary;
   s.frames = F;
   const MatX3d* last_good = nullptr;
-  std::map<std::vector<char>, KernelSmoother::Basis> bases;
   for (int f = 0; f < F; ++f) {
     FrameSolve& fs = result.frames[f];
     const Work& wk = work[f];
@@ -505,12 +524,8 @@ SolveResult RobustSolver::SolveSequence(
           512);
       if (width_index >= 0) {
         const KernelSmoother& smoother = smoothers_[width_index];
-        auto found = bases.find(wk.observed);
-        if (found == bases.end()) {
-          found = bases.emplace(wk.observed, smoother.MakeBasis(wk.observed))
-                      .first;
-        }
-        const KernelSmoother::Basis& basis = found->second;
+        const KernelSmoother::Basis& basis =
+            bases.Get(width_index, wk.observed);
         out += vertex_kernel_.at(width_index) *
                smoother.Coefficients(basis, smoother.Data(basis, wk.residual),
                                      lambda);
