@@ -526,9 +526,21 @@ SolveResult RobustSolver::SolveSequence(
         const KernelSmoother& smoother = smoothers_[width_index];
         const KernelSmoother::Basis& basis =
             bases.Get(width_index, wk.observed);
-        out += vertex_kernel_.at(width_index) *
-               smoother.Coefficients(basis, smoother.Data(basis, wk.residual),
-                                     lambda);
+        const Eigen::MatrixXd alpha = smoother.Coefficients(
+            basis, smoother.Data(basis, wk.residual), lambda);
+        const auto& kernel = vertex_kernel_.at(width_index);
+        // Row by row in parallel (the kernel spans most markers: ~V K
+        // entries, the largest single-threaded product of the frame).
+        ParallelFor(
+            0, data_.num_vertices,
+            [&](int64_t v) {
+              for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator
+                       it(kernel, v);
+                   it; ++it) {
+                out.row(v) += it.value() * alpha.row(it.col());
+              }
+            },
+            512);
       }
       result.meshes[f] = rig ? Skin(*rig, fs.jaw, out) : out;
       last_good = &result.meshes[f];
