@@ -6,7 +6,7 @@
 
 #include "blending/solve_index_cache.h"
 #include "core/jaw.h"
-#include "core/parallel.h"
+#include "blending/thread_count_test_util.h"
 #include "indexing/lgi_test_actor.h"
 
 namespace hmc {
@@ -148,18 +148,8 @@ TEST_P(LgiRbfSeeds, SameResultForAnyThreadCount) {
   const RbfFixture fx(GetParam(), /*jaw=*/true);
   std::mt19937 rng(400 + GetParam());
   const std::vector<BundleFrame> frames = MixtureFrames(fx, 2, &rng);
-  SolveResult one, two;
-  {
-    ThreadLimit limit(1);
-    one = fx.rbf.SolveSequence(frames, {});
-  }
-  {
-    ThreadLimit limit(2);
-    two = fx.rbf.SolveSequence(frames, {});
-  }
-  for (size_t f = 0; f < frames.size(); ++f) {
-    EXPECT_EQ((one.meshes[f] - two.meshes[f]).cwiseAbs().maxCoeff(), 0.0);
-  }
+  ExpectSameMeshesForAnyThreadCount(
+      [&] { return fx.rbf.SolveSequence(frames, {}); });
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, LgiRbfSeeds, ::testing::Values(1, 2, 3));

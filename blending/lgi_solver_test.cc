@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/parallel.h"
+#include "blending/thread_count_test_util.h"
 #include "indexing/lgi_test_actor.h"
 
 namespace hmc {
@@ -341,19 +341,8 @@ TEST(LgiSolver, BitIdenticalForAnyThreadCount) {
     frames.push_back(fx.Bundles(x, n + 1));
     jaw.push_back(fx.actor.shapes[n].jaw);
   }
-  std::vector<MatX3d> one, two;
-  {
-    ThreadLimit limit(1);
-    one = fx.solver->SolveSequence(frames, jaw).meshes;
-  }
-  {
-    ThreadLimit limit(2);
-    two = fx.solver->SolveSequence(frames, jaw).meshes;
-  }
-  ASSERT_EQ(one.size(), two.size());
-  for (size_t f = 0; f < one.size(); ++f) {
-    EXPECT_TRUE(one[f] == two[f]) << "frame " << f;
-  }
+  ExpectSameMeshesForAnyThreadCount(
+      [&] { return fx.solver->SolveSequence(frames, jaw); });
 }
 
 // A missing bundle is filled from its neighbours and flagged; a frame with

@@ -7,7 +7,7 @@
 
 #include "blending/solve_index_cache.h"
 #include "core/jaw.h"
-#include "core/parallel.h"
+#include "blending/thread_count_test_util.h"
 #include "indexing/lgi_test_actor.h"
 
 namespace hmc {
@@ -209,18 +209,8 @@ TEST_P(RobustSeeds, SameResultForAnyThreadCount) {
     frames.push_back(fx.Bundles(
         f + 1, fx.actor.ShapePositions(f % fx.actor.shapes.size()), 0.2, &rng));
   }
-  SolveResult one, two;
-  {
-    ThreadLimit limit(1);
-    one = fx.robust.SolveSequence(frames, {});
-  }
-  {
-    ThreadLimit limit(2);
-    two = fx.robust.SolveSequence(frames, {});
-  }
-  for (size_t f = 0; f < frames.size(); ++f) {
-    EXPECT_EQ((one.meshes[f] - two.meshes[f]).cwiseAbs().maxCoeff(), 0.0);
-  }
+  ExpectSameMeshesForAnyThreadCount(
+      [&] { return fx.robust.SolveSequence(frames, {}); });
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, RobustSeeds, ::testing::Values(1, 2, 3));
