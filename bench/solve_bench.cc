@@ -180,6 +180,10 @@ void BM_RobustSequence(benchmark::State& state) {
   state.counters["s_per_frame"] = benchmark::Counter(
       static_cast<double>(state.iterations() * t.bundles.size()),
       benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  const RobustReport& report = robust.report();
+  state.counters["local_fraction"] =
+      static_cast<double>(report.bundles_local) /
+      std::max<int64_t>(1, report.bundles_local + report.bundles_global);
 }
 BENCHMARK(BM_RobustSequence)
     ->Unit(benchmark::kMillisecond)

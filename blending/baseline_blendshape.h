@@ -57,9 +57,11 @@ Eigen::VectorXd SolveSoftBoxQp(const Eigen::MatrixXd& Q,
                                const Eigen::VectorXd& c, double mu,
                                int max_iterations);
 // min 1/2 w^T Q w - c^T w subject to 0 <= w <= 1. Q: N x N symmetric
-// positive definite; c: N. Returns N weights in [0, 1].
+// positive definite; c: N. Returns N weights in [0, 1]. start (optional,
+// N): a guess of the solution whose bounds are tried first.
 Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
-                                  const Eigen::VectorXd& c, int max_iterations);
+                                  const Eigen::VectorXd& c, int max_iterations,
+                                  const Eigen::VectorXd* start = nullptr);
 
 // Runs a per-frame baseline over a sequence with the lgi conventions
 // (LgiSolver::SolveSequence): frame_errors (empty or one per frame) marks
@@ -85,8 +87,11 @@ class BlendshapeSolver {
 
   // Fits the weights for one frame; on success fills *weights (N) and, if
   // mesh is given, the skinned result (V x 3) and each bundle's residual.
+  // start (optional, N): a guess of the weights (the previous frame's) that
+  // the bounded fit tries first; the result does not depend on it.
   FrameSolve SolveFrame(const BundleFrame& bundles, const JawPose& jaw,
-                        Eigen::VectorXd* weights, MatX3d* mesh) const;
+                        Eigen::VectorXd* weights, MatX3d* mesh,
+                        const Eigen::VectorXd* start = nullptr) const;
 
   // The normal matrix over the observed bundles (K flags): sum_k B_k^T B_k
   // + lambda I (N x N).
@@ -98,8 +103,10 @@ class BlendshapeSolver {
   // The weights (N) fitted to d (3K, zero where not observed) with `ridge`
   // added to the normal matrix's diagonal (mm^2 per unit of weight^2): a
   // noise-aware prior pulling the weights toward the neutral.
+  // start: as SolveFrame's.
   Eigen::VectorXd FitWeights(const std::vector<char>& observed,
-                             const Eigen::VectorXd& d, double ridge) const;
+                             const Eigen::VectorXd& d, double ridge,
+                             const Eigen::VectorXd* start = nullptr) const;
 
   // The unskinned displacement sum_n w_n b*_n(s_k) of bundle k's surface
   // point (mm). weights: N.

@@ -91,6 +91,56 @@ TEST_P(BoxQp, BoundedMatchesEnumerationOfActiveSets) {
   }
 }
 
+// Blendshape-like problems: many strongly correlated shapes, a tiny
+// Tikhonov term, weights beyond both bounds. The result satisfies the KKT
+// conditions (w = clamp(w - g), g = Q w - c), with or without a warm start
+// and through the fallback (one primal-dual iteration only).
+TEST_P(BoxQp, BoundedSatisfiesKktOnIllConditionedProblems) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> g(0, 1);
+  std::uniform_real_distribution<double> u(-0.6, 1.6);
+  const int N = 60, R = 150;
+  const Eigen::MatrixXd base = Eigen::MatrixXd::NullaryExpr(
+      R, 12, [&](Eigen::Index, Eigen::Index) { return g(rng); });
+  Eigen::MatrixXd mix = Eigen::MatrixXd::NullaryExpr(
+      12, N, [&](Eigen::Index, Eigen::Index) { return g(rng); });
+  const Eigen::MatrixXd A =
+      base * mix + 0.05 * Eigen::MatrixXd::NullaryExpr(
+                              R, N, [&](Eigen::Index, Eigen::Index) {
+                                return g(rng);
+                              });
+  const Eigen::MatrixXd Q =
+      A.transpose() * A + 1e-6 * Eigen::MatrixXd::Identity(N, N);
+  auto kkt = [&](const Eigen::VectorXd& w, const Eigen::VectorXd& c) {
+    const Eigen::VectorXd grad = Q * w - c;
+    return ((w - grad).cwiseMax(0.0).cwiseMin(1.0) - w).lpNorm<Eigen::Infinity>();
+  };
+  for (int trial = 0; trial < 5; ++trial) {
+    Eigen::VectorXd truth(N);
+    for (int i = 0; i < N; ++i) truth[i] = u(rng);
+    Eigen::VectorXd d = A * truth;
+    for (int i = 0; i < R; ++i) d[i] += 0.3 * g(rng);
+    const Eigen::VectorXd c = A.transpose() * d;
+    const double tol = 1e-9 * (1 + c.lpNorm<Eigen::Infinity>());
+    const Eigen::VectorXd cold = SolveBoundedBoxQp(Q, c, 100);
+    Eigen::VectorXd guess(N);
+    for (int i = 0; i < N; ++i) guess[i] = u(rng);
+    const Eigen::VectorXd warm = SolveBoundedBoxQp(Q, c, 100, &guess);
+    const Eigen::VectorXd fallback = SolveBoundedBoxQp(Q, c, 1, &guess);
+    for (const Eigen::VectorXd* w : {&cold, &warm, &fallback}) {
+      EXPECT_GE(w->minCoeff(), 0.0);
+      EXPECT_LE(w->maxCoeff(), 1.0);
+      EXPECT_LT(kkt(*w, c), tol) << "trial " << trial;
+      // Strictly convex: one minimiser.
+      EXPECT_NEAR(Objective(Q, c, *w), Objective(Q, c, cold),
+                  1e-9 * (1 + std::abs(Objective(Q, c, cold))));
+    }
+    // The bounds matter here, or the test would not test them.
+    const Eigen::VectorXd free = Q.llt().solve(c);
+    EXPECT_TRUE(free.minCoeff() < 0 || free.maxCoeff() > 1);
+  }
+}
+
 // The soft objective is C1 and convex: its minimum is where its gradient
 // Q w - c + mu (min(w, 0) + max(w - 1, 0)) vanishes.
 TEST_P(BoxQp, SoftReachesAStationaryPoint) {

@@ -273,6 +273,7 @@ SolveResult RobustSolver::SolveSequence(
   {
     Progress progress("robust: lgi choice and global fit", F);
     const FrameSolve* previous = nullptr;
+    int previous_index = -1;
     for (int f = 0; f < F; ++f) {
       const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
       FrameSolve& fs = result.frames[f];
@@ -287,13 +288,16 @@ SolveResult RobustSolver::SolveSequence(
       fs = lgi_.SolveFrame(frames[f], pose, previous);
       if (!fs.ok) continue;
       Eigen::VectorXd w;
-      const FrameSolve global = global_.SolveFrame(frames[f], pose, &w, nullptr);
+      const FrameSolve global = global_.SolveFrame(
+          frames[f], pose, &w, nullptr,
+          previous ? &work[previous_index].global : nullptr);
       if (!global.ok) {
         fs.ok = false;
         fs.reason = global.reason;
         continue;
       }
       previous = &fs;
+      previous_index = f;
       Work& wk = work[f];
       wk.ok = true;
       wk.global = w;
@@ -366,7 +370,9 @@ SolveResult RobustSolver::SolveSequence(
     if (report_.ridge > 0) {
       ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
         Work& wk = work[good[i]];
-        wk.global = global_.FitWeights(wk.observed, disp[i], report_.ridge);
+        const Eigen::VectorXd unridged = wk.global;
+        wk.global = global_.FitWeights(wk.observed, disp[i], report_.ridge,
+                                       &unridged);
         wk.global_nonzero.clear();
         for (int n = 0; n < wk.global.size(); ++n) {
           if (wk.global[n] != 0) wk.global_nonzero.emplace_back(n, wk.global[n]);
