@@ -351,8 +351,16 @@ Eigen::MatrixXd BlendshapeSolver::Normal(
 Eigen::VectorXd BlendshapeSolver::FitWeights(
     const std::vector<char>& observed, const Eigen::VectorXd& d, double ridge,
     const Eigen::VectorXd* start) const {
+  return FitWeights(observed, d,
+                    Eigen::VectorXd::Constant(data_.num_shapes, ridge), start);
+}
+
+Eigen::VectorXd BlendshapeSolver::FitWeights(
+    const std::vector<char>& observed, const Eigen::VectorXd& d,
+    const Eigen::VectorXd& ridge, const Eigen::VectorXd* start) const {
+  HMC_CHECK(ridge.size() == data_.num_shapes);
   Eigen::MatrixXd H = Normal(observed);
-  H.diagonal().array() += ridge;
+  H.diagonal() += ridge;
   const Eigen::VectorXd c = Project(d);
   // E = w^T H w - 2 c^T w + mu pen = 2 (1/2 w^T H w - c^T w + 1/2 mu pen).
   return options_.bounded

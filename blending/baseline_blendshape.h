@@ -107,6 +107,12 @@ class BlendshapeSolver {
   Eigen::VectorXd FitWeights(const std::vector<char>& observed,
                              const Eigen::VectorXd& d, double ridge,
                              const Eigen::VectorXd* start = nullptr) const;
+  // The same with one ridge per shape (N): a Gaussian prior of variance
+  // sigma^2 / ridge_n on weight n.
+  Eigen::VectorXd FitWeights(const std::vector<char>& observed,
+                             const Eigen::VectorXd& d,
+                             const Eigen::VectorXd& ridge,
+                             const Eigen::VectorXd* start = nullptr) const;
 
   // The unskinned displacement sum_n w_n b*_n(s_k) of bundle k's surface
   // point (mm). weights: N.

@@ -14,9 +14,12 @@
 //      cross-validation of a Gaussian-kernel smoother
 //      (blending/kernel_smoother.h): sigma^2 = RSS / (3 tr(I - H)) at the
 //      chosen width and smoothing.
-//      The global fit is then solved again with the ridge r |w|^2 that
-//      minimises Mallows' C_p for that noise (r = 0 without noise): the
-//      bounded fit alone follows the noise, the ridge averages it out.
+//      The global fit is then solved again with a ridge per shape,
+//      sum_n r_n w_n^2, r_n = sigma^2 / tau_n^2 from the Gaussian prior
+//      w_n ~ N(0, tau_n^2) that maximises the evidence of the sequence's
+//      frames (empirical Bayes with automatic relevance determination; r = 0
+//      without noise): the bounded fit alone follows the noise; the prior
+//      averages it out and holds back the shapes the sequence does not use.
 //   3. Per bundle, lgi's choice replaces the global weights where it
 //      explains the bundle's neighbourhood (itself and its natural
 //      neighbours) better than the global fit by more than the noise can:
@@ -70,6 +73,9 @@ struct RobustOptions {
                            // neighbourhood better (false: global fit only)
   double margin = 1.0;     // lgi must beat the global fit's neighbourhood
                            // cost by this many noise variances per bundle
+  double ridge = -1.0;     // the global fit's ridge, every shape (mm^2 per
+                           // unit of weight^2); < 0: one per shape, chosen
+                           // from the data
   bool correct = true;     // kernel correction of the residual
   double smoothing = 0.0;  // the correction's lambda (> 0: fixed; 0: chosen
                            // from the data)
@@ -83,7 +89,10 @@ struct RobustReport {
   double noise_mm = 0.0;      // sigma used (given or estimated)
   double selection_noise_mm = 0.0;  // sigma the choice of step 3 allowed
   bool noise_estimated = false;
-  double ridge = 0.0;         // of the global fit (mm^2 per weight^2)
+  double ridge = 0.0;         // of the global fit, per shape: the median
+                              // (mm^2 per weight^2)
+  double ridge_min = 0.0;     // and the smallest
+  std::vector<double> shape_ridge;  // N: each shape's
   double width_mm = 0.0;      // Gaussian width of the correction (mm)
   double lambda = 0.0;        // its smoothing (0: no correction)
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <numeric>
 #include <random>
 
 #include "blending/solve_index_cache.h"
@@ -111,8 +113,9 @@ TEST_P(RobustSeeds, DatasetShapesReconstructExactly) {
 // Under marker noise the estimate finds its level and the robust solve is
 // more accurate than the paper's lgi, which passes through every noisy
 // bundle. It is not asserted to beat the bounded global fit here: on this
-// small actor (few shapes, two-shape mixtures) it does not on seeds 2 and 3
-// (docs/method.md, "The robust default", gives the numbers).
+// small actor (12 shapes, random two-shape mixtures, so every shape is
+// used) it does not on seed 2 (docs/method.md, "The robust default", gives
+// the numbers).
 TEST_P(RobustSeeds, NoisyMarkersAreAveragedNotFollowed) {
   RobustFixture fx(GetParam(), /*jaw=*/false);
   std::mt19937 rng(500 + GetParam());
@@ -146,6 +149,55 @@ TEST_P(RobustSeeds, NoisyMarkersAreAveragedNotFollowed) {
   fixed.robust.SolveSequence(frames, {});
   EXPECT_EQ(fixed.robust.report().noise_mm, sigma);
   EXPECT_FALSE(fixed.robust.report().noise_estimated);
+}
+
+// A sequence that uses a few shapes (a performance): the evidence gives every
+// shape it uses a smaller ridge than the typical (median) shape it does not
+// use, and the solve is then more accurate than the bounded fit, against
+// ground truth. (The ratio median unused / largest used was 50, 68 and 4.7
+// on seeds 1-3: a margin of 10 failed on seed 3, where some unused shapes
+// resemble used ones enough to stand in for them and keep small ridges.)
+TEST_P(RobustSeeds, ShapesTheSequenceDoesNotUseAreHeldBack) {
+  RobustFixture fx(GetParam(), /*jaw=*/false);
+  std::mt19937 rng(700 + GetParam());
+  const int N = static_cast<int>(fx.actor.shapes.size());
+  std::vector<int> order(N);
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), rng);
+  const std::vector<int> used(order.begin(), order.begin() + 3);
+  std::uniform_real_distribution<double> weight(0.1, 0.9);
+  const double sigma = 0.3;
+  std::vector<BundleFrame> frames;
+  std::vector<MatX3d> truth;
+  for (int f = 0; f < 16; ++f) {
+    MatX3d x = fx.actor.neutral.V;
+    for (int n : used) x += weight(rng) * fx.actor.shapes[n].displacement;
+    truth.push_back(x);
+    frames.push_back(fx.Bundles(f + 1, x, sigma, &rng));
+  }
+  const SolveResult robust = fx.robust.SolveSequence(frames, {});
+  const std::vector<double>& ridge = fx.robust.report().shape_ridge;
+  ASSERT_EQ(static_cast<int>(ridge.size()), N);
+  double used_max = 0;
+  std::vector<double> unused;
+  for (int n = 0; n < N; ++n) {
+    if (std::find(used.begin(), used.end(), n) != used.end()) {
+      used_max = std::max(used_max, ridge[n]);
+    } else {
+      unused.push_back(ridge[n]);
+    }
+  }
+  std::sort(unused.begin(), unused.end());
+  const double unused_median = unused[unused.size() / 2];
+  EXPECT_GT(unused_median, used_max);
+  const double e_robust = MeanError(robust, truth);
+  const double e_global = MeanError(fx.global.SolveSequence(frames, {}), truth);
+  EXPECT_LT(e_robust, e_global);
+  std::printf(
+      "seed %d: %d shapes; ridge used <= %.3g, unused median %.3g (min %.3g); "
+      "mean error robust %.4f, bounded %.4f mm\n",
+      GetParam(), N, used_max, unused_median, unused.front(), e_robust,
+      e_global);
 }
 
 TEST_P(RobustSeeds, BadFrameRepeatsThePreviousGoodMesh) {
