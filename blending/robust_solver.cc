@@ -162,39 +162,42 @@ Eigen::VectorXd ChooseShapeRidges(
   const double s2 = sigma * sigma;
   const int total = static_cast<int>(disp.size());
   const int count = std::min(total, 32);
-  struct Frame {
+  // The sampled frames grouped by observed set (frames usually share one):
+  // one normal matrix, its eigendecomposition, and B^T d per frame.
+  struct Group {
     Eigen::MatrixXd H;
-    Eigen::VectorXd c;  // B^T d
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>* eig = nullptr;
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
+    std::vector<Eigen::VectorXd> c;
   };
-  std::vector<Frame> frames(count);
-  std::map<std::vector<char>, Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>>
-      eigs;
+  std::map<std::vector<char>, Group> by_set;
   for (int j = 0; j < count; ++j) {
     const int i = static_cast<int>((static_cast<int64_t>(j) * total) / count);
-    Frame& f = frames[j];
-    f.H = global.Normal(*observed[i]);
-    f.c = global.Project(disp[i]);
-    auto found = eigs.find(*observed[i]);
-    if (found == eigs.end()) {
-      found = eigs.emplace(*observed[i],
-                           Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(f.H))
-                  .first;
-      HMC_CHECK(found->second.info() == Eigen::Success);
+    auto found = by_set.find(*observed[i]);
+    if (found == by_set.end()) {
+      found = by_set.emplace(*observed[i], Group()).first;
+      found->second.H = global.Normal(*observed[i]);
+      found->second.eig.compute(found->second.H);
+      HMC_CHECK(found->second.eig.info() == Eigen::Success);
     }
-    f.eig = &found->second;
+    found->second.c.push_back(global.Project(disp[i]));
   }
+  std::vector<Group*> groups;
+  for (auto& [set, group] : by_set) groups.push_back(&group);
   // 1. One variance.
-  double tau2 = 0.0, best = std::numeric_limits<double>::infinity();
-  std::vector<Eigen::VectorXd> projected(count);
-  for (int j = 0; j < count; ++j) {
-    projected[j] = frames[j].eig->eigenvectors().transpose() * frames[j].c;
+  std::vector<Eigen::VectorXd> projected;
+  std::vector<const Eigen::VectorXd*> projected_s;
+  for (Group* g : groups) {
+    for (const Eigen::VectorXd& c : g->c) {
+      projected.push_back(g->eig.eigenvectors().transpose() * c);
+      projected_s.push_back(&g->eig.eigenvalues());
+    }
   }
+  double tau2 = 0.0, best = std::numeric_limits<double>::infinity();
   for (int e = -40; e <= 16; ++e) {
     const double t2 = std::pow(10.0, e / 8.0);
     double nll = 0.0;
-    for (int j = 0; j < count; ++j) {
-      const Eigen::VectorXd& s = frames[j].eig->eigenvalues();
+    for (size_t j = 0; j < projected.size(); ++j) {
+      const Eigen::VectorXd& s = *projected_s[j];
       for (int i = 0; i < N; ++i) {
         const double si = std::max(s[i], 1e-12);
         const double var = s2 * si + t2 * si * si;
@@ -210,21 +213,27 @@ Eigen::VectorXd ChooseShapeRidges(
   // keep trading variance slowly, so it is not run to convergence (200
   // iterations instead of 50 changed the face error by ~1 %).
   Eigen::VectorXd t = Eigen::VectorXd::Constant(N, tau2);
+  const int G = static_cast<int>(groups.size());
   for (int iter = 0; iter < 50; ++iter) {
-    std::vector<Eigen::VectorXd> mu2(count), gamma(count);
-    ParallelFor(0, count, [&](int64_t j) {
-      Eigen::MatrixXd A = frames[j].H / s2;
+    std::vector<Eigen::VectorXd> mu2(G), gamma(G);
+    ParallelFor(0, G, [&](int64_t j) {
+      const Group& g = *groups[j];
+      Eigen::MatrixXd A = g.H / s2;
       A.diagonal() += t.cwiseInverse();
       const Eigen::LLT<Eigen::MatrixXd> llt(A);
-      mu2[j] = llt.solve(frames[j].c / s2).cwiseAbs2();
+      mu2[j] = Eigen::VectorXd::Zero(N);
+      for (const Eigen::VectorXd& c : g.c) {
+        mu2[j] += llt.solve(c / s2).cwiseAbs2();
+      }
       // diag(A^-1) = squared column norms of L^-1.
       const Eigen::MatrixXd inverse_l =
           llt.matrixL().solve(Eigen::MatrixXd::Identity(N, N));
-      gamma[j] = Eigen::VectorXd::Ones(N) -
-                 inverse_l.colwise().squaredNorm().transpose().cwiseQuotient(t);
+      gamma[j] = static_cast<double>(g.c.size()) *
+                 (Eigen::VectorXd::Ones(N) -
+                  inverse_l.colwise().squaredNorm().transpose().cwiseQuotient(t));
     });
     Eigen::VectorXd num = Eigen::VectorXd::Zero(N), den = num;
-    for (int j = 0; j < count; ++j) {
+    for (int j = 0; j < G; ++j) {
       num += mu2[j];
       den += gamma[j];
     }
