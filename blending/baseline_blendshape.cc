@@ -22,7 +22,9 @@ void BlendshapeOptions::Register(OptionFields* fields) {
               "soft [0,1] penalty weight (mm^2 per unit weight^2)");
   fields->Add("tikhonov", &tikhonov,
               "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)");
-  fields->Add("max_iterations", &max_iterations, "Newton iterations per frame");
+  fields->Add("max_iterations", &max_iterations,
+              "solver iterations per frame (Newton steps of the soft fit, "
+              "active-set updates of the bounded one)");
   fields->Add("min_bundle_fraction", &min_bundle_fraction,
               "frames with fewer observed bundles (fraction of markers) are "
               "flagged bad and skipped");

@@ -43,7 +43,8 @@ struct BlendshapeOptions {
                              // (mm^2 per unit of weight^2)
   double tikhonov = 1e-6;    // lambda: |w|^2 regulariser for conditioning
                              // (mm^2 per unit of weight^2)
-  int max_iterations = 100;  // Newton iterations per frame
+  int max_iterations = 100;  // solver iterations per frame (Newton steps;
+                             // active-set updates when bounded)
   double min_bundle_fraction = 0.5;  // frames with fewer observed bundles
                                      // (fraction of markers) are bad
 
