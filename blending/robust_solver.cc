@@ -152,8 +152,9 @@ std::pair<int, double> ChooseSmoothing(
 //   2. From there, one variance per shape (automatic relevance
 //      determination; MacKay 1992's fixed point, pooled over frames):
 //      tau_n^2 = sum_f mu_fn^2 / sum_f (1 - S_f,nn / tau_n^2), mu_f and S_f
-//      the frame's posterior mean and covariance. Shapes the sequence does
-//      not use get a large ridge, those it uses a small one.
+//      the frame's posterior mean and covariance, tau_n^2 kept in
+//      [1e-10, 1e4]. Shapes the sequence does not use get a large ridge,
+//      those it uses a small one.
 Eigen::VectorXd ChooseShapeRidges(
     const BlendshapeSolver& global,
     const std::vector<const std::vector<char>*>& observed,
