@@ -32,8 +32,9 @@ void RobustOptions::Register(OptionFields* fields) {
               "lgi must beat the global fit's neighbourhood cost by this many "
               "noise variances per bundle");
   fields->Add("ridge", &ridge,
-              "the global fit's ridge (mm^2 per unit of weight^2); negative: "
-              "chosen per sequence for the marker noise");
+              "one ridge for every shape of the global fit (mm^2 per unit of "
+              "weight^2); negative: one per shape, from the sequence's frames "
+              "and the marker noise (empirical Bayes)");
   fields->Add("correct", &correct,
               "fit the remaining residual with a Gaussian-kernel smoother");
   fields->Add("smoothing", &smoothing,
