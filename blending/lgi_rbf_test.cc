@@ -4,48 +4,19 @@
 
 #include <random>
 
-#include "blending/solve_index_cache.h"
+#include "blending/small_lgi_test_util.h"
 #include "core/jaw.h"
 #include "blending/thread_count_test_util.h"
-#include "indexing/lgi_test_actor.h"
 
 namespace hmc {
 namespace {
 
 // A small actor with its real lgi model (index + natural-neighbour weights).
-struct RbfFixture {
+struct RbfFixture : SmallLgiModel {
   explicit RbfFixture(int seed, bool jaw, LgiRbfOptions rbf_options = {})
-      : actor(MakeActor(seed, jaw)),
-        model(BuildLgiModel(actor, IndexOptions(), SmallNn())),
-        lgi(actor.neutral, model.data, model.index, model.nn, IndexOptions(),
-            SolveOptions()),
+      : SmallLgiModel(seed, jaw),
         rbf(actor.neutral, model.data, lgi, rbf_options) {}
 
-  static Actor MakeActor(int seed, bool jaw) {
-    testing::LgiTestActorOptions o;
-    o.seed = seed;
-    o.jaw = jaw;
-    return testing::MakeLgiTestActor(o);
-  }
-  static NaturalNeighbourOptions SmallNn() {
-    NaturalNeighbourOptions nn;
-    nn.uv_resolution = 256;
-    return nn;
-  }
-
-  // The markers' surface points on `x` (V x 3) as one bundle frame.
-  BundleFrame Bundles(int frame, const MatX3d& x) const {
-    BundleFrame b;
-    b.frame = frame;
-    for (const Marker& m : actor.markers) {
-      b.bundles[m.name] = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
-    }
-    return b;
-  }
-
-  Actor actor;
-  LgiModel model;
-  LgiSolver lgi;
   LgiRbfSolver rbf;
 };
 

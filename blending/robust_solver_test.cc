@@ -7,10 +7,9 @@
 #include <numeric>
 #include <random>
 
-#include "blending/solve_index_cache.h"
+#include "blending/small_lgi_test_util.h"
 #include "core/jaw.h"
 #include "blending/thread_count_test_util.h"
-#include "indexing/lgi_test_actor.h"
 
 namespace hmc {
 namespace {
@@ -22,46 +21,13 @@ BlendshapeOptions Bounded() {
 }
 
 // A small actor with its real lgi model and the bounded global fit.
-struct RobustFixture {
+struct RobustFixture : SmallLgiModel {
   explicit RobustFixture(int seed, bool jaw, RobustOptions options = {})
-      : actor(MakeActor(seed, jaw)),
-        model(BuildLgiModel(actor, IndexOptions(), SmallNn())),
-        lgi(actor.neutral, model.data, model.index, model.nn, IndexOptions(),
-            SolveOptions()),
+      : SmallLgiModel(seed, jaw),
         global(actor.neutral, model.data, Bounded()),
         robust(actor.neutral, model.data, lgi, model.nn, global,
                SolveOptions(), options) {}
 
-  static Actor MakeActor(int seed, bool jaw) {
-    testing::LgiTestActorOptions o;
-    o.seed = seed;
-    o.jaw = jaw;
-    return testing::MakeLgiTestActor(o);
-  }
-  static NaturalNeighbourOptions SmallNn() {
-    NaturalNeighbourOptions nn;
-    nn.uv_resolution = 256;
-    return nn;
-  }
-
-  // The markers' surface points on `x` (V x 3), plus Gaussian noise of std
-  // `noise` per coordinate, as one bundle frame.
-  BundleFrame Bundles(int frame, const MatX3d& x, double noise,
-                      std::mt19937* rng) const {
-    std::normal_distribution<double> n(0.0, noise > 0 ? noise : 1.0);
-    BundleFrame b;
-    b.frame = frame;
-    for (const Marker& m : actor.markers) {
-      Vec3 p = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
-      if (noise > 0) p += Vec3(n(*rng), n(*rng), n(*rng));
-      b.bundles[m.name] = p;
-    }
-    return b;
-  }
-
-  Actor actor;
-  LgiModel model;
-  LgiSolver lgi;
   BlendshapeSolver global;
   RobustSolver robust;
 };
