@@ -419,11 +419,11 @@ SolveResult RobustSolver::SolveSequence(
   result.meshes.resize(F);
   std::vector<Work> work(F);
 
-  // Step 1: lgi's choices and the global fit, frame by frame.
+  // Step 1: lgi's choices, frame by frame (its temporal preference looks at
+  // the previous frame) ...
   {
-    Progress progress("robust: lgi choice and global fit", F);
+    Progress progress("robust: lgi choice", F);
     const FrameSolve* previous = nullptr;
-    int previous_index = -1;
     for (int f = 0; f < F; ++f) {
       const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
       FrameSolve& fs = result.frames[f];
@@ -436,23 +436,30 @@ SolveResult RobustSolver::SolveSequence(
         continue;
       }
       fs = lgi_.SolveFrame(frames[f], pose, previous);
+      if (fs.ok) previous = &fs;
+    }
+  }
+  // ... and the global fit, in runs of consecutive frames solved in
+  // parallel, each frame warm-started from the one before it in its run.
+  constexpr int kRun = 8;
+  ParallelFor(0, (F + kRun - 1) / kRun, [&](int64_t run) {
+    const Eigen::VectorXd* start = nullptr;
+    for (int f = static_cast<int>(run) * kRun;
+         f < std::min(F, static_cast<int>(run + 1) * kRun); ++f) {
+      FrameSolve& fs = result.frames[f];
       if (!fs.ok) continue;
-      Eigen::VectorXd w;
-      const FrameSolve global = global_.SolveFrame(
-          frames[f], pose, &w, nullptr,
-          previous ? &work[previous_index].global : nullptr);
+      Work& wk = work[f];
+      const FrameSolve global =
+          global_.SolveFrame(frames[f], fs.jaw, &wk.global, nullptr, start);
       if (!global.ok) {
         fs.ok = false;
         fs.reason = global.reason;
         continue;
       }
-      previous = &fs;
-      previous_index = f;
-      Work& wk = work[f];
+      start = &wk.global;
       wk.ok = true;
-      wk.global = w;
-      for (int n = 0; n < w.size(); ++n) {
-        if (w[n] != 0) wk.global_nonzero.emplace_back(n, w[n]);
+      for (int n = 0; n < wk.global.size(); ++n) {
+        if (wk.global[n] != 0) wk.global_nonzero.emplace_back(n, wk.global[n]);
       }
       wk.observed.assign(K, 0);
       wk.disp.assign(K, Vec3::Zero());
@@ -463,11 +470,11 @@ SolveResult RobustSolver::SolveSequence(
           continue;
         }
         wk.observed[k] = 1;
-        wk.disp[k] = UnskinBundle(data_, k, pose, b.observed) -
+        wk.disp[k] = UnskinBundle(data_, k, fs.jaw, b.observed) -
                      data_.site_neutral.row(k).transpose();
       }
     }
-  }
+  });
   LgiSolver::SmoothWeights(solve_options_.smooth_window, &result.frames);
 
   std::vector<int> good;
