@@ -55,6 +55,16 @@ ShapeData ComputeShapeData(const Actor& actor) {
       }
     }
   });
+  d.vertex_shape_start.assign(V + 1, 0);
+  for (int v = 0; v < V; ++v) {
+    const float* b = d.VertexDisplacements(v);
+    for (int n = 0; n < N; ++n) {
+      if (b[3 * n] != 0 || b[3 * n + 1] != 0 || b[3 * n + 2] != 0) {
+        d.vertex_shapes.push_back(n);
+      }
+    }
+    d.vertex_shape_start[v + 1] = static_cast<int>(d.vertex_shapes.size());
+  }
   return d;
 }
 

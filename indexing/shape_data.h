@@ -38,6 +38,11 @@ struct ShapeData {
   // V N 3 floats, vertex-major: [(v N + n) 3 + axis] = b*_n(v) (mm). One
   // vertex's shapes are contiguous, which is what the blend loop reads.
   std::vector<float> vertex_displacement;
+  // The shapes that move each vertex (b*_n(v) != 0; most shapes are local,
+  // so a blend need not visit the others), CSR over vertices:
+  // vertex_shapes[vertex_shape_start[v] .. vertex_shape_start[v + 1]).
+  std::vector<int> vertex_shape_start;  // V + 1
+  std::vector<int> vertex_shapes;
   std::optional<JawRig> jaw_rig;
 
   Vec3 SiteDisplacement(int shape, int bundle) const {

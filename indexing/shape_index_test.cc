@@ -55,6 +55,41 @@ TEST(ShapeIndex, DatasetBundlesLandOnCloudPoints) {
   }
 }
 
+// The per-vertex shape lists hold exactly the shapes that move the vertex
+// (what the robust blend visits instead of every shape).
+TEST(ShapeData, VertexShapesAreTheShapesThatMoveTheVertex) {
+  for (int seed = 1; seed <= 3; ++seed) {
+    testing::LgiTestActorOptions o;
+    o.seed = seed;
+    o.jaw = seed != 2;
+    Actor actor = testing::MakeLgiTestActor(o);
+    // Make shape 0 local: it leaves the left half of the face alone.
+    for (int v = 0; v < actor.NumVertices(); ++v) {
+      if (actor.neutral.V(v, 0) < 0) actor.shapes[0].displacement.row(v).setZero();
+    }
+    const ShapeData data = ComputeShapeData(actor);
+    ASSERT_EQ(static_cast<int>(data.vertex_shape_start.size()),
+              data.num_vertices + 1);
+    int64_t without_shape0 = 0;
+    for (int v = 0; v < data.num_vertices; ++v) {
+      const float* b = data.VertexDisplacements(v);
+      std::vector<int> moving;
+      for (int n = 0; n < data.num_shapes; ++n) {
+        if (b[3 * n] != 0 || b[3 * n + 1] != 0 || b[3 * n + 2] != 0) {
+          moving.push_back(n);
+        }
+      }
+      const std::vector<int> listed(
+          data.vertex_shapes.begin() + data.vertex_shape_start[v],
+          data.vertex_shapes.begin() + data.vertex_shape_start[v + 1]);
+      EXPECT_EQ(listed, moving) << "vertex " << v;
+      without_shape0 += moving.empty() || moving[0] != 0;
+    }
+    // Unskinning with the jaw must not leave rounding noise behind.
+    EXPECT_GE(without_shape0, data.num_vertices / 3) << "seed " << seed;
+  }
+}
+
 // A shape that does not move a bundle's region is pruned from its cloud;
 // a copy of a shape is merged; a shape equal to another at the marker but
 // different elsewhere in the region is kept.
