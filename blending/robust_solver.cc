@@ -143,33 +143,45 @@ std::pair<int, double> ChooseSmoothing(
   return best_choice;
 }
 
-// The global fit's ridge per shape, sigma^2 / tau_n^2: the Gaussian prior
+// The global fit's ridge per shape, s^2 / tau_n^2: the Gaussian prior
 // w_n ~ N(0, tau_n^2) whose variances maximise the evidence (marginal
-// likelihood) of the sequence's frames, d = B w + noise (empirical Bayes;
-// bounds ignored). At most 32 frames, evenly spaced.
+// likelihood) of the sequence's frames, d = B w + noise of variance s^2 per
+// coordinate (empirical Bayes; bounds ignored). At most 32 frames, evenly
+// spaced.
 //   1. One variance for every shape: in the eigenbasis of the normal matrix
 //      H = V diag(s) V^T, c = V^T B^T d has independent coordinates
-//      c_i ~ N(0, sigma^2 s_i + tau^2 s_i^2); tau^2 by a log-spaced search.
+//      c_i ~ N(0, s^2 s_i + tau^2 s_i^2); tau^2 by a log-spaced search.
+//      With sigma_floor >= 0 (the noise was estimated, not given), s^2 is
+//      searched too, and the larger of that and sigma_floor is kept: the
+//      global fit's residual need not be marker noise (a noise-free take
+//      whose expressions the dataset holds leaves ~1 um of misfit, which
+//      the prior must not treat as noise), but the one-variance model
+//      underestimates real noise (0.37 mm for 0.5 mm), which the choice's
+//      noise (sigma_floor) does not.
 //   2. From there, one variance per shape (automatic relevance
 //      determination; MacKay 1992's fixed point, pooled over frames):
 //      tau_n^2 = sum_f mu_fn^2 / sum_f (1 - S_f,nn / tau_n^2), mu_f and S_f
 //      the frame's posterior mean and covariance, tau_n^2 kept in
 //      [1e-10, 1e4]. Shapes the sequence does not use get a large ridge,
 //      those it uses a small one.
+// *prior_sigma receives s.
 Eigen::VectorXd ChooseShapeRidges(
     const BlendshapeSolver& global,
     const std::vector<const std::vector<char>*>& observed,
-    const std::vector<Eigen::VectorXd>& disp, double sigma, int N) {
+    const std::vector<Eigen::VectorXd>& disp, double sigma,
+    double sigma_floor, int N, double* prior_sigma) {
+  *prior_sigma = 0.0;
   if (!(sigma > 0) || disp.empty()) return Eigen::VectorXd::Zero(N);
-  const double s2 = sigma * sigma;
   const int total = static_cast<int>(disp.size());
   const int count = std::min(total, 32);
   // The sampled frames grouped by observed set (frames usually share one):
-  // one normal matrix, its eigendecomposition, and B^T d per frame.
+  // one normal matrix, its eigendecomposition, B^T d per frame, and the
+  // squared coordinates c_i^2 summed over the frames.
   struct Group {
     Eigen::MatrixXd H;
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
     std::vector<Eigen::VectorXd> c;
+    Eigen::VectorXd c2;
   };
   std::map<std::vector<char>, Group> by_set;
   for (int j = 0; j < count; ++j) {
@@ -180,35 +192,51 @@ Eigen::VectorXd ChooseShapeRidges(
       found->second.H = global.Normal(*observed[i]);
       found->second.eig.compute(found->second.H);
       HMC_CHECK(found->second.eig.info() == Eigen::Success);
+      found->second.c2 = Eigen::VectorXd::Zero(N);
     }
-    found->second.c.push_back(global.Project(disp[i]));
+    Group& g = found->second;
+    g.c.push_back(global.Project(disp[i]));
+    g.c2 += (g.eig.eigenvectors().transpose() * g.c.back()).cwiseAbs2();
   }
   std::vector<Group*> groups;
   for (auto& [set, group] : by_set) groups.push_back(&group);
-  // 1. One variance.
-  std::vector<Eigen::VectorXd> projected;
-  std::vector<const Eigen::VectorXd*> projected_s;
-  for (Group* g : groups) {
-    for (const Eigen::VectorXd& c : g->c) {
-      projected.push_back(g->eig.eigenvectors().transpose() * c);
-      projected_s.push_back(&g->eig.eigenvalues());
-    }
-  }
-  double tau2 = 0.0, best = std::numeric_limits<double>::infinity();
-  for (int e = -40; e <= 16; ++e) {
-    const double t2 = std::pow(10.0, e / 8.0);
-    double nll = 0.0;
-    for (size_t j = 0; j < projected.size(); ++j) {
-      const Eigen::VectorXd& s = *projected_s[j];
+  // 1. One variance (and the noise's).
+  auto nll = [&](double noise2, double t2) {
+    double sum = 0.0;
+    for (const Group* g : groups) {
+      const Eigen::VectorXd& s = g->eig.eigenvalues();
+      const double frames = static_cast<double>(g->c.size());
       for (int i = 0; i < N; ++i) {
         const double si = std::max(s[i], 1e-12);
-        const double var = s2 * si + t2 * si * si;
-        nll += std::log(var) + projected[j][i] * projected[j][i] / var;
+        const double var = noise2 * si + t2 * si * si;
+        sum += frames * std::log(var) + g->c2[i] / var;
       }
     }
-    if (nll < best) {
-      best = nll;
-      tau2 = t2;
+    return sum;
+  };
+  auto tau_grid = [](int e) { return std::pow(10.0, e / 8.0); };
+  double s2 = sigma * sigma;
+  if (sigma_floor >= 0) {
+    double best = std::numeric_limits<double>::infinity(), best_s2 = s2;
+    for (int es = -48; es <= 16; ++es) {
+      const double noise2 = sigma * sigma * std::pow(10.0, es / 8.0);
+      for (int e = -40; e <= 16; ++e) {
+        const double value = nll(noise2, tau_grid(e));
+        if (value < best) {
+          best = value;
+          best_s2 = noise2;
+        }
+      }
+    }
+    s2 = std::max(best_s2, sigma_floor * sigma_floor);
+  }
+  *prior_sigma = std::sqrt(s2);
+  double tau2 = 0.0, best = std::numeric_limits<double>::infinity();
+  for (int e = -40; e <= 16; ++e) {
+    const double value = nll(s2, tau_grid(e));
+    if (value < best) {
+      best = value;
+      tau2 = tau_grid(e);
     }
   }
   // 2. One per shape: 50 fixed-point iterations at most. Correlated shapes
@@ -515,6 +543,33 @@ SolveResult RobustSolver::SolveSequence(
   }
   report_.noise_mm = sigma;
 
+  // The noise the choice of step 3 allows for: when estimated, also bounded
+  // by the median over bundles of the better model's neighbourhood error per
+  // coordinate, min(cost_lgi / 3 (m - 1), cost_global / 3 m), from the
+  // current global residuals. The global fit's residual counts expressions
+  // the dataset lacks as noise (held-out frames without noise estimate
+  // 0.2 mm); where lgi explains the neighbours exactly, this bound is 0.
+  auto choice_noise2 = [&]() {
+    const double s2 = sigma * sigma;
+    if (options_.noise_mm >= 0) return s2;
+    std::vector<double> v;
+    for (size_t i = 0; i < good.size(); ++i) {
+      const Work& wk = work[good[i]];
+      const FrameSolve& fs = result.frames[good[i]];
+      for (int k = 0; k < K; ++k) {
+        if (!wk.observed[k]) continue;
+        int m = 0;
+        const double cg = NeighbourhoodEnergy(global_residual[i], wk, k, &m);
+        if (m < 2) continue;
+        v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
+                             cg / (3.0 * m)));
+      }
+    }
+    if (v.empty()) return s2;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return std::min(s2, v[v.size() / 2]);
+  };
+
   // Step 2b: the global fit again, with the ridge the noise calls for.
   {
     std::vector<Eigen::VectorXd> disp(good.size());
@@ -527,8 +582,10 @@ SolveResult RobustSolver::SolveSequence(
     const Eigen::VectorXd ridges =
         options_.ridge >= 0
             ? Eigen::VectorXd::Constant(data_.num_shapes, options_.ridge)
-            : ChooseShapeRidges(global_, good_observed, disp, sigma,
-                                data_.num_shapes);
+            : ChooseShapeRidges(
+                  global_, good_observed, disp, sigma,
+                  options_.noise_mm < 0 ? std::sqrt(choice_noise2()) : -1.0,
+                  data_.num_shapes, &report_.prior_noise_mm);
     std::vector<double> sorted(ridges.data(), ridges.data() + ridges.size());
     std::sort(sorted.begin(), sorted.end());
     report_.shape_ridge.assign(ridges.data(), ridges.data() + ridges.size());
@@ -555,32 +612,7 @@ SolveResult RobustSolver::SolveSequence(
   }
 
   // Step 3: per bundle, lgi's choice or the global weights.
-  // The noise the selection allows for: when estimated, also bounded by the
-  // median over bundles of the better model's neighbourhood error per
-  // coordinate, min(cost_lgi / 3 (m - 1), cost_global / 3 m). The global
-  // fit's residual counts expressions the dataset lacks as noise (held-out
-  // frames without noise estimate 0.2 mm); where lgi explains the
-  // neighbours exactly, this bound is 0.
-  double sel_sigma2 = sigma * sigma;
-  if (options_.noise_mm < 0) {
-    std::vector<double> v;
-    for (size_t i = 0; i < good.size(); ++i) {
-      const Work& wk = work[good[i]];
-      const FrameSolve& fs = result.frames[good[i]];
-      for (int k = 0; k < K; ++k) {
-        if (!wk.observed[k]) continue;
-        int m = 0;
-        const double cg = NeighbourhoodEnergy(global_residual[i], wk, k, &m);
-        if (m < 2) continue;
-        v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
-                             cg / (3.0 * m)));
-      }
-    }
-    if (!v.empty()) {
-      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-      sel_sigma2 = std::min(sel_sigma2, v[v.size() / 2]);
-    }
-  }
+  const double sel_sigma2 = choice_noise2();
   report_.selection_noise_mm = std::sqrt(sel_sigma2);
   const double per_bundle = options_.margin * 3.0 * sel_sigma2;
   for (size_t i = 0; i < good.size(); ++i) {
@@ -735,12 +767,13 @@ SolveResult RobustSolver::SolveSequence(
     begin = end;
   }
   spdlog::info(
-      "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice), global "
-      "ridge per shape {:.3g} (median; smallest {:.3g}), correction width "
-      "{:.1f} mm, smoothing {:.3g}; {} bundles took the local lgi choice, {} "
-      "the global fit",
+      "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
+      "mm for the shape prior), global ridge per shape {:.3g} (median; "
+      "smallest {:.3g}), correction width {:.1f} mm, smoothing {:.3g}; {} "
+      "bundles took the local lgi choice, {} the global fit",
       report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
-      report_.selection_noise_mm, report_.ridge, report_.ridge_min,
+      report_.selection_noise_mm, report_.prior_noise_mm, report_.ridge,
+      report_.ridge_min,
       report_.width_mm, report_.lambda, report_.bundles_local,
       report_.bundles_global);
   return result;

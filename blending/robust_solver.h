@@ -15,11 +15,16 @@
 //      (blending/kernel_smoother.h): sigma^2 = RSS / (3 tr(I - H)) at the
 //      chosen width and smoothing.
 //      The global fit is then solved again with a ridge per shape,
-//      sum_n r_n w_n^2, r_n = sigma^2 / tau_n^2 from the Gaussian prior
+//      sum_n r_n w_n^2, r_n = s^2 / tau_n^2 from the Gaussian prior
 //      w_n ~ N(0, tau_n^2) that maximises the evidence of the sequence's
-//      frames (empirical Bayes with automatic relevance determination; r = 0
-//      without noise): the bounded fit alone follows the noise; the prior
-//      averages it out and holds back the shapes the sequence does not use.
+//      frames (empirical Bayes with automatic relevance determination): the
+//      bounded fit alone follows the noise; the prior averages it out and
+//      holds back the shapes the sequence does not use. Its noise s is
+//      sigma when given; when estimated, the one the evidence prefers, but
+//      at least the choice's noise sigma_c of step 3 (from the unridged
+//      fit): a noise-free take leaves the global fit a misfit that
+//      cross-validation reads as noise and the evidence does not, while the
+//      evidence's one-variance model underestimates real noise.
 //   3. Per bundle, lgi's choice replaces the global weights where it
 //      explains the bundle's neighbourhood (itself and its natural
 //      neighbours) better than the global fit by more than the noise can:
@@ -88,6 +93,7 @@ struct RobustOptions {
 struct RobustReport {
   double noise_mm = 0.0;      // sigma used (given or estimated)
   double selection_noise_mm = 0.0;  // sigma the choice of step 3 allowed
+  double prior_noise_mm = 0.0;      // the noise of the shape prior (step 2)
   bool noise_estimated = false;
   double ridge = 0.0;         // of the global fit, per shape: the median
                               // (mm^2 per weight^2)
