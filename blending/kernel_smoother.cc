@@ -132,7 +132,8 @@ KernelFit KernelSmoother::Fit(const Basis& basis, const Eigen::MatrixXd& z,
   KernelFit fit;
   fit.n = static_cast<double>(basis.ids.size());
   for (int i = 0; i < basis.mu.size(); ++i) {
-    const double shrink = lambda / (basis.mu[i] + lambda);
+    const double shrink =
+        std::isinf(lambda) ? 1.0 : lambda / (basis.mu[i] + lambda);
     fit.rss += shrink * shrink * z.row(i).squaredNorm();
     fit.trace_residual += shrink;
   }

@@ -68,11 +68,12 @@ class KernelSmoother {
   // d (K entries, only the observed ones used) as n x 3 data over `basis`,
   // and its projections z = U^T d.
   Eigen::MatrixXd Data(const Basis& basis, const std::vector<Vec3>& d) const;
+  // lambda > 0; infinity: f = 0 (RSS = |d|^2, tr(I - H) = n).
   KernelFit Fit(const Basis& basis, const Eigen::MatrixXd& z,
                 double lambda) const;
 
   // The coefficients alpha (K x 3, zero for unobserved bundles) of the fit
-  // to data (n x 3) with smoothing lambda > 0.
+  // to data (n x 3) with smoothing lambda > 0 (infinity: all zero).
   Eigen::MatrixXd Coefficients(const Basis& basis, const Eigen::MatrixXd& data,
                                double lambda) const;
 

