@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <tuple>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 
@@ -63,11 +64,19 @@ bool RobustOptions::Check() const {
 struct RobustSolver::Work {
   bool ok = false;
   Eigen::VectorXd global;                  // N weights of the global fit
-  std::vector<std::pair<int, double>> global_nonzero;
+  std::vector<std::pair<int, double>> global_nonzero;  // derived: SetGlobal
   std::vector<Vec3> disp;                  // K observed displacements d_k
   std::vector<char> observed;              // K
   std::vector<char> use_global;            // K
   std::vector<Vec3> residual;              // K: the blend's, at the bundles
+
+  void SetGlobal(Eigen::VectorXd w) {
+    global = std::move(w);
+    global_nonzero.clear();
+    for (int n = 0; n < global.size(); ++n) {
+      if (global[n] != 0) global_nonzero.emplace_back(n, global[n]);
+    }
+  }
 };
 
 namespace {
@@ -480,18 +489,17 @@ SolveResult RobustSolver::SolveSequence(
       FrameSolve& fs = result.frames[f];
       if (!fs.ok) continue;
       Work& wk = work[f];
+      Eigen::VectorXd w;
       const FrameSolve global =
-          global_.SolveFrame(frames[f], fs.jaw, &wk.global, nullptr, start);
+          global_.SolveFrame(frames[f], fs.jaw, &w, nullptr, start);
       if (!global.ok) {
         fs.ok = false;
         fs.reason = global.reason;
         continue;
       }
+      wk.SetGlobal(std::move(w));
       start = &wk.global;
       wk.ok = true;
-      for (int n = 0; n < wk.global.size(); ++n) {
-        if (wk.global[n] != 0) wk.global_nonzero.emplace_back(n, wk.global[n]);
-      }
       wk.observed.assign(K, 0);
       wk.disp.assign(K, Vec3::Zero());
       for (int k = 0; k < K; ++k) {
@@ -596,13 +604,8 @@ SolveResult RobustSolver::SolveSequence(
     if (sorted.back() > 0) {
       ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
         Work& wk = work[good[i]];
-        const Eigen::VectorXd unridged = wk.global;
-        wk.global = global_.FitWeights(wk.observed, disp[i], ridges,
-                                       &unridged);
-        wk.global_nonzero.clear();
-        for (int n = 0; n < wk.global.size(); ++n) {
-          if (wk.global[n] != 0) wk.global_nonzero.emplace_back(n, wk.global[n]);
-        }
+        wk.SetGlobal(global_.FitWeights(wk.observed, disp[i], ridges,
+                                        &wk.global));
         for (int k = 0; k < K; ++k) {
           if (wk.observed[k]) {
             global_residual[i][k] =
