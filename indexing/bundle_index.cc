@@ -411,7 +411,8 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   thread_local VisitMarks marks;
   marks.Begin(simplices_.size());
   double best = kInf;
-  std::vector<IndexCandidate> found;
+  thread_local std::vector<IndexCandidate> found;
+  found.clear();
   const double keep = outside_slack_mm + options.on_data_mm;
   for (int r = 0;; ++r) {
     for (int z = c[2] - r; z <= c[2] + r; ++z) {
@@ -453,10 +454,27 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
     }
     if (bound == kInf || best + keep < bound) break;
   }
-  for (const IndexCandidate& cand : found) {
-    if (cand.distance <= best + keep) result.candidates.push_back(cand);
+  // Canonicalize's result, sorting indices rather than the candidates
+  // (there are often a thousand within best + keep: overlapping tetrahedra
+  // share their closest face).
+  thread_local std::vector<uint32_t> order;
+  order.clear();
+  for (uint32_t i = 0; i < found.size(); ++i) {
+    if (found[i].distance <= best + keep) order.push_back(i);
   }
-  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return found[a].simplex < found[b].simplex;
+  });
+  thread_local std::unordered_set<uint64_t> seen;
+  seen.clear();
+  for (uint32_t i : order) {
+    IndexCandidate& cand = found[i];
+    if (seen.insert(SnapAndKey(simplices_[cand.simplex],
+                               options.inside_tolerance, &cand))
+            .second) {
+      result.candidates.push_back(cand);
+    }
+  }
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
