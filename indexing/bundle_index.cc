@@ -86,21 +86,28 @@ uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
 }
 
 // Candidates in canonical form: sorted by simplex id, snapped, one per
-// support (the lowest id).
+// support (the lowest id). The indices are sorted, not the candidates: a
+// projection can keep a thousand (overlapping tetrahedra share their
+// closest face).
 void Canonicalize(const std::vector<CloudSimplex>& simplices,
                   double tolerance, std::vector<IndexCandidate>* candidates) {
-  std::sort(candidates->begin(), candidates->end(),
-            [](const auto& a, const auto& b) { return a.simplex < b.simplex; });
-  std::unordered_set<uint64_t> seen;
-  size_t kept = 0;
-  for (IndexCandidate& cand : *candidates) {
-    if (!seen.insert(SnapAndKey(simplices[cand.simplex], tolerance, &cand))
-             .second) {
-      continue;
+  thread_local std::vector<uint32_t> order;
+  order.resize(candidates->size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return (*candidates)[a].simplex < (*candidates)[b].simplex;
+  });
+  thread_local std::unordered_set<uint64_t> seen;
+  seen.clear();
+  std::vector<IndexCandidate> kept;
+  for (uint32_t i : order) {
+    IndexCandidate& cand = (*candidates)[i];
+    if (seen.insert(SnapAndKey(simplices[cand.simplex], tolerance, &cand))
+            .second) {
+      kept.push_back(cand);
     }
-    (*candidates)[kept++] = cand;
   }
-  candidates->resize(kept);
+  candidates->swap(kept);
 }
 
 }  // namespace
@@ -454,27 +461,10 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
     }
     if (bound == kInf || best + keep < bound) break;
   }
-  // Canonicalize's result, sorting indices rather than the candidates
-  // (there are often a thousand within best + keep: overlapping tetrahedra
-  // share their closest face).
-  thread_local std::vector<uint32_t> order;
-  order.clear();
-  for (uint32_t i = 0; i < found.size(); ++i) {
-    if (found[i].distance <= best + keep) order.push_back(i);
+  for (const IndexCandidate& cand : found) {
+    if (cand.distance <= best + keep) result.candidates.push_back(cand);
   }
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return found[a].simplex < found[b].simplex;
-  });
-  thread_local std::unordered_set<uint64_t> seen;
-  seen.clear();
-  for (uint32_t i : order) {
-    IndexCandidate& cand = found[i];
-    if (seen.insert(SnapAndKey(simplices_[cand.simplex],
-                               options.inside_tolerance, &cand))
-            .second) {
-      result.candidates.push_back(cand);
-    }
-  }
+  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
