@@ -321,7 +321,8 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
                            num_observed, K, needed);
     return f;
   }
-  const Eigen::VectorXd w = FitWeights(observed, d, 0.0, start);
+  const Eigen::VectorXd w =
+      FitWeights(observed, d, Eigen::VectorXd::Zero(data_.num_shapes), start);
   f.ok = true;
   if (mesh) {
     *mesh = Blend(w, jaw);
@@ -348,13 +349,6 @@ Eigen::MatrixXd BlendshapeSolver::Normal(
     H.noalias() -= Bk.transpose() * Bk;
   }
   return H;
-}
-
-Eigen::VectorXd BlendshapeSolver::FitWeights(
-    const std::vector<char>& observed, const Eigen::VectorXd& d, double ridge,
-    const Eigen::VectorXd* start) const {
-  return FitWeights(observed, d,
-                    Eigen::VectorXd::Constant(data_.num_shapes, ridge), start);
 }
 
 Eigen::VectorXd BlendshapeSolver::FitWeights(

@@ -101,15 +101,10 @@ class BlendshapeSolver {
   Eigen::VectorXd Project(const Eigen::VectorXd& d) const {
     return site_shapes_.transpose() * d;
   }
-  // The weights (N) fitted to d (3K, zero where not observed) with `ridge`
-  // added to the normal matrix's diagonal (mm^2 per unit of weight^2): a
-  // noise-aware prior pulling the weights toward the neutral.
-  // start: as SolveFrame's.
-  Eigen::VectorXd FitWeights(const std::vector<char>& observed,
-                             const Eigen::VectorXd& d, double ridge,
-                             const Eigen::VectorXd* start = nullptr) const;
-  // The same with one ridge per shape (N): a Gaussian prior of variance
-  // sigma^2 / ridge_n on weight n.
+  // The weights (N) fitted to d (3K, zero where not observed) with one
+  // ridge per shape (N) added to the normal matrix's diagonal (mm^2 per unit
+  // of weight^2): a Gaussian prior of variance sigma^2 / ridge_n pulling
+  // weight n toward the neutral. start: as SolveFrame's.
   Eigen::VectorXd FitWeights(const std::vector<char>& observed,
                              const Eigen::VectorXd& d,
                              const Eigen::VectorXd& ridge,
