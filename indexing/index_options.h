@@ -18,7 +18,7 @@ struct IndexOptions {
   // Tetrahedra (step 2).
   double min_tet_quality = 0.2;  // 6 sqrt(2) volume / longest edge^3 below
                                  // this: too thin, pruned (0..1)
-  double min_triangle_quality = 1e-3;  // same for the triangles kept for flat
+  double min_triangle_quality = 0.2;  // same for the triangles kept for flat
                                        // clouds (4 area / sqrt(3) edge^2)
   double max_edge_mm = 6.0;  // simplices with a longer edge are pruned as too
                              // large an extent (mm; 0 = no bound)
