@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 #include <tuple>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 
@@ -41,6 +42,26 @@ struct VisitMarks {
     return true;
   }
 };
+
+// Per-thread closest points of the faces one query has computed, by face id
+// (the same epoch scheme as VisitMarks).
+struct FaceMemo {
+  std::vector<uint32_t> epoch_of;
+  std::vector<ClosestPoint> point;
+  uint32_t epoch = 0;
+
+  void Begin(size_t n) {
+    if (epoch_of.size() < n) {
+      epoch_of.assign(n, 0);
+      point.resize(n);
+    }
+    if (++epoch == 0) {
+      std::fill(epoch_of.begin(), epoch_of.end(), 0);
+      epoch = 1;
+    }
+  }
+};
+thread_local FaceMemo face_memo;
 
 // Inside test of a tetrahedron: convex barycentrics within tolerance, clamped
 // and renormalised.
@@ -127,6 +148,46 @@ void BundleIndex::ComputeBoxes() {
       boxes_[i][3 + a] = std::nextafter(static_cast<float>(hi), kInfF);
     }
   }
+}
+
+void BundleIndex::ComputeFaces() {
+  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
+  tet_faces_.resize(num_tets_);
+  std::unordered_map<uint64_t, uint32_t> id_of;
+  for (int64_t t = 0; t < num_tets_; ++t) {
+    const CloudSimplex& s = simplices_[t];
+    for (int f = 0; f < 4; ++f) {
+      uint64_t key = 0;
+      for (int i : kFaces[f]) key = (key << 16) | s.corner[i];
+      tet_faces_[t][f] =
+          id_of.emplace(key, static_cast<uint32_t>(id_of.size())).first->second;
+    }
+  }
+  num_faces_ = static_cast<uint32_t>(id_of.size());
+}
+
+ClosestPoint BundleIndex::ClosestPointOutsideTet(int64_t s,
+                                                 const Vec3& p) const {
+  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
+  const SimplexCorners x = Corners(static_cast<int>(s));
+  ClosestPoint out;
+  out.distance = kInf;
+  for (int f = 0; f < 4; ++f) {
+    const uint32_t id = tet_faces_[s][f];
+    if (face_memo.epoch_of[id] != face_memo.epoch) {
+      face_memo.epoch_of[id] = face_memo.epoch;
+      face_memo.point[id] = ClosestPointOnTriangle(
+          x.x[kFaces[f][0]], x.x[kFaces[f][1]], x.x[kFaces[f][2]], p);
+    }
+    const ClosestPoint& c = face_memo.point[id];
+    if (c.distance < out.distance) {
+      out.point = c.point;
+      out.distance = c.distance;
+      out.weights = {0, 0, 0, 0};
+      for (int i = 0; i < 3; ++i) out.weights[kFaces[f][i]] = c.weights[i];
+    }
+  }
+  return out;
 }
 
 double BundleIndex::BoxDistance(int64_t s, const Vec3& p) const {
@@ -258,6 +319,7 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
   st.triangles_kept = triangles;
   st.edges_kept = edges;
   index.ComputeBoxes();
+  index.ComputeFaces();
   index.BuildGrid(options);
   return index;
 }
@@ -357,6 +419,7 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
   stats_.memory_bytes = static_cast<int64_t>(
       points_.size() * sizeof(double) + point_shapes_.size() * sizeof(int) +
       simplices_.size() * (sizeof(CloudSimplex) + sizeof(boxes_[0])) +
+      tet_faces_.size() * sizeof(tet_faces_[0]) +
       cell_start_.size() * sizeof(uint32_t) +
       cell_items_.size() * sizeof(uint32_t));
 }
@@ -417,6 +480,7 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   // unvisited simplex can come closer than the best plus the slack.
   thread_local VisitMarks marks;
   marks.Begin(simplices_.size());
+  face_memo.Begin(num_faces_);
   double best = kInf;
   thread_local std::vector<IndexCandidate> found;
   found.clear();
@@ -435,8 +499,12 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
           items_of(x, y, z, [&](uint32_t s) {
             if (!marks.Visit(s)) return;
             if (BoxDistance(s, p) > best + keep) return;
+            // No tetrahedron holds p (CollectInside tested every one
+            // listed in p's cell).
             const ClosestPoint cp =
-                ClosestPointOnSimplex(Corners(s), p, options.inside_tolerance);
+                s < num_tets_ ? ClosestPointOutsideTet(s, p)
+                              : ClosestPointOnSimplex(Corners(s), p,
+                                                      options.inside_tolerance);
             if (cp.distance > best + keep) return;
             best = std::min(best, cp.distance);
             IndexCandidate cand;
@@ -594,6 +662,7 @@ BundleIndex BundleIndex::Read(std::istream& in) {
   }
   if (!ok) throw InputError("index cache: inconsistent bundle index");
   index.ComputeBoxes();
+  index.ComputeFaces();
   return index;
 }
 

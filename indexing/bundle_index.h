@@ -101,6 +101,15 @@ class BundleIndex {
  private:
   void BuildGrid(const IndexOptions& options);
   void ComputeBoxes();
+  // tet_faces_: the ids of each tetrahedron's faces, in ClosestPointOnSimplex's
+  // order; a face is an ordered corner triple, so tetrahedra sharing it (with
+  // the corners in the same order, as Build's ascending ones do) share its id.
+  void ComputeFaces();
+  // The closest point of tetrahedron s to a p outside it: the nearest of its
+  // faces, each face's closest point computed once per query (a projection
+  // reaches hundreds of tetrahedra around the same faces). Equals
+  // ClosestPointOnSimplex for such p.
+  ClosestPoint ClosestPointOutsideTet(int64_t s, const Vec3& p) const;
   // The inside candidates among simplices [begin, end) (ascending ids).
   void CollectInside(const uint32_t* begin, const uint32_t* end, const Vec3& p,
                      const IndexOptions& options,
@@ -115,6 +124,8 @@ class BundleIndex {
   std::vector<int> point_shapes_;
   std::vector<CloudSimplex> simplices_;  // tets first, then lower dimensions
   std::vector<std::array<float, 6>> boxes_;  // per simplex: min xyz, max xyz
+  std::vector<std::array<uint32_t, 4>> tet_faces_;  // per tetrahedron
+  uint32_t num_faces_ = 0;
   int64_t num_tets_ = 0;
   Vec3 grid_origin_ = Vec3::Zero();
   double cell_size_ = 1.0;

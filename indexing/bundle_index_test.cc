@@ -40,8 +40,8 @@ std::set<int> Ids(const IndexQuery& q) {
   return ids;
 }
 
-// The grid query returns exactly what testing every simplex returns, inside
-// and outside, for clouds of several sizes and seeds and coarse/fine grids.
+// The grid query returns exactly what testing every simplex returns (the
+// same simplices, closest points and weights), inside and outside, for clouds of several sizes and seeds and coarse/fine grids.
 TEST(BundleIndex, GridQueryMatchesBruteForce) {
   for (int seed = 1; seed <= 4; ++seed) {
     for (int cells : {1, 5, 16}) {
@@ -59,7 +59,17 @@ TEST(BundleIndex, GridQueryMatchesBruteForce) {
           const IndexQuery slow = index.QueryBruteForce(p, slack, options);
           ASSERT_EQ(fast.inside, slow.inside);
           EXPECT_NEAR(fast.distance, slow.distance, 1e-12);
-          EXPECT_EQ(Ids(fast), Ids(slow));
+          ASSERT_EQ(Ids(fast), Ids(slow));
+          // The same closest points and weights too (the grid query takes
+          // the tetrahedra's from their faces, computed once per query).
+          for (size_t i = 0; i < fast.candidates.size(); ++i) {
+            const IndexCandidate& a = fast.candidates[i];
+            const IndexCandidate& b = slow.candidates[i];
+            EXPECT_NEAR((a.point - b.point).norm(), 0.0, 1e-12);
+            for (int c = 0; c < 4; ++c) {
+              EXPECT_NEAR(a.weights[c], b.weights[c], 1e-12);
+            }
+          }
           (fast.inside ? inside : outside)++;
           for (const auto& c : fast.candidates) {
             EXPECT_LE(c.distance, fast.distance + slack + options.on_data_mm);

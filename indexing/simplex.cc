@@ -81,8 +81,7 @@ ClosestPoint ClosestPointOnSimplex(const SimplexCorners& s, const Vec3& p,
     out.distance = 0.0;
     return out;
   }
-  static constexpr std::array<std::array<int, 3>, 4> kFaces = {
-      {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}}};
+  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
   out.distance = std::numeric_limits<double>::infinity();
   for (const auto& f : kFaces) {
     const ClosestPoint c = ClosestPointOnTriangle(s.x[f[0]], s.x[f[1]],

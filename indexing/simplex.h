@@ -12,6 +12,11 @@ namespace hmc {
 
 // Up to four corner positions; `size` 1 (point), 2 (segment), 3 (triangle)
 // or 4 (tetrahedron).
+// A tetrahedron's faces, as corner indices (the order in which
+// ClosestPointOnSimplex tries them).
+inline constexpr std::array<std::array<int, 3>, 4> kTetFaces = {
+    {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}}};
+
 struct SimplexCorners {
   std::array<Vec3, 4> x;
   int size = 4;
