@@ -377,54 +377,54 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
       G[static_cast<size_t>(n) * B + i] = static_cast<float>(w);
     }
   }
+  const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
+  std::vector<Rigid3> jaw(count);
+  for (int i = 0; rig && i < count; ++i) jaw[i] = rig->Transform(frames[i]->jaw);
   std::vector<MatX3d> out(count, MatX3d(data_.num_vertices, 3));
   ParallelFor(
       0, data_.num_vertices,
       [&](int64_t v) {
-        // Each frame's effective weight of shape n at v, frame innermost:
-        // L[n][frame] + share[frame] G[n][frame], with L the local choices'
-        // sum_k lambda_k(v) u_kn and share the natural-neighbour weight of
-        // the bundles that took the global fit. L is kept zero between
-        // vertices (the entries written are listed in `touched`).
-        thread_local std::vector<float> L;
-        thread_local std::vector<int> touched;
-        L.resize(static_cast<size_t>(N) * B, 0.0f);
-        touched.clear();
-        float share[B] = {};
-        for (int i = 0; i < count; ++i) {
+        // In single precision, as the displacements are stored (the sums'
+        // rounding, ~1e-6 mm, is far below the verification's 1e-3 mm).
+        // A vertex no shape moves (44 % of the default actor's) needs no
+        // weights.
+        float acc[3][B] = {};
+        const float* d = data_.VertexDisplacements(static_cast<int>(v));
+        if (data_.vertex_shape_start[v] < data_.vertex_shape_start[v + 1]) {
+          // The local choices, sum_k lambda_k(v) sum_n u_kn d_n(v), and the
+          // natural-neighbour weight (share) of the bundles that took the
+          // global fit.
+          float share[B] = {};
           for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
                    nn_.weights, v);
                it; ++it) {
-            if (work[i]->use_global[it.col()]) {
-              share[i] += static_cast<float>(it.value());
-              continue;
-            }
-            for (const auto& [n, u] : frames[i]->bundles[it.col()].weights) {
-              L[n * B + i] += static_cast<float>(it.value() * u);
-              touched.push_back(n);
+            for (int i = 0; i < count; ++i) {
+              if (work[i]->use_global[it.col()]) {
+                share[i] += static_cast<float>(it.value());
+                continue;
+              }
+              for (const auto& [n, u] : frames[i]->bundles[it.col()].weights) {
+                const float c = static_cast<float>(it.value() * u);
+                const float* dn = d + 3 * n;
+                acc[0][i] += c * dn[0];
+                acc[1][i] += c * dn[1];
+                acc[2][i] += c * dn[2];
+              }
             }
           }
-        }
-        // Over the shapes that move v, in single precision as the
-        // displacements are stored (the sums' rounding, ~1e-6 mm, is far
-        // below the verification's 1e-3 mm).
-        float acc[3][B] = {};
-        const float* d = data_.VertexDisplacements(static_cast<int>(v));
-        for (int j = data_.vertex_shape_start[v];
-             j < data_.vertex_shape_start[v + 1]; ++j) {
-          const int n = data_.vertex_shapes[j];
-          const float d0 = d[3 * n], d1 = d[3 * n + 1], d2 = d[3 * n + 2];
-          const float* ln = &L[static_cast<size_t>(n) * B];
-          const float* gn = &G[static_cast<size_t>(n) * B];
-          for (int i = 0; i < B; ++i) {
-            const float w = ln[i] + share[i] * gn[i];
-            acc[0][i] += d0 * w;
-            acc[1][i] += d1 * w;
-            acc[2][i] += d2 * w;
+          // share * G over the shapes that move v, frame innermost.
+          for (int j = data_.vertex_shape_start[v];
+               j < data_.vertex_shape_start[v + 1]; ++j) {
+            const int n = data_.vertex_shapes[j];
+            const float d0 = d[3 * n], d1 = d[3 * n + 1], d2 = d[3 * n + 2];
+            const float* gn = &G[static_cast<size_t>(n) * B];
+            for (int i = 0; i < B; ++i) {
+              const float w = share[i] * gn[i];
+              acc[0][i] += d0 * w;
+              acc[1][i] += d1 * w;
+              acc[2][i] += d2 * w;
+            }
           }
-        }
-        for (int n : touched) {
-          std::fill_n(&L[static_cast<size_t>(n) * B], B, 0.0f);
         }
         if (kernel) {
           for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
@@ -438,9 +438,13 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
           }
         }
         for (int i = 0; i < count; ++i) {
-          for (int c = 0; c < 3; ++c) {
-            out[i](v, c) = neutral_.V(v, c) + acc[c][i];
+          Vec3 x;
+          for (int c = 0; c < 3; ++c) x[c] = neutral_.V(v, c) + acc[c][i];
+          if (rig) {
+            const double w = rig->weights[v];
+            x = (1.0 - w) * x + w * (jaw[i] * x);
           }
+          out[i].row(v) = x.transpose();
         }
       },
       256);
@@ -752,8 +756,7 @@ SolveResult RobustSolver::SolveSequence(
       FrameSolve& fs = result.frames[f];
       const Work& wk = work[f];
       if (wk.ok) {
-        MatX3d& out = blended[i++];
-        result.meshes[f] = rig ? Skin(*rig, fs.jaw, out) : std::move(out);
+        result.meshes[f] = std::move(blended[i++]);
         last_good = &result.meshes[f];
         for (int k = 0; k < K; ++k) {
           BundleSolve& b = fs.bundles[k];

@@ -132,10 +132,11 @@ class RobustSolver {
                              int k, int* count) const;
   // The unskinned blend at vertex v (step 4).
   Vec3 BlendVertex(const Work& work, const FrameSolve& frame, int v) const;
-  // Steps 4-5 for up to kBlendBatch good frames at once, so that each
+  // Steps 4-6 for up to kBlendBatch good frames at once, so that each
   // vertex's shape displacements are read from memory once per batch: the
   // unskinned blend plus, when kernel is given, the correction
-  // sum_k kernel(v, k) alpha[i](k) (alpha[i]: K x 3). V x 3 per frame.
+  // sum_k kernel(v, k) alpha[i](k) (alpha[i]: K x 3), skinned by the frame's
+  // jaw when the actor has a jaw rig (as Skin). V x 3 per frame.
   static constexpr int kBlendBatch = 8;
   std::vector<MatX3d> BlendBatch(
       const std::vector<const Work*>& work,
