@@ -107,27 +107,30 @@ uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
 }
 
 // Candidates in canonical form: sorted by simplex id, snapped, one per
-// support (the lowest id). The indices are sorted, not the candidates: a
-// projection can keep a thousand (overlapping tetrahedra share their
-// closest face).
+// support (the lowest id). A projection can keep hundreds (overlapping
+// simplices share their closest face, edge or point): each support's lowest
+// id is found in one pass, and only those are sorted.
 void Canonicalize(const std::vector<CloudSimplex>& simplices,
                   double tolerance, std::vector<IndexCandidate>* candidates) {
+  thread_local std::unordered_map<uint64_t, uint32_t> lowest;  // support -> i
+  lowest.clear();
+  for (uint32_t i = 0; i < candidates->size(); ++i) {
+    IndexCandidate& cand = (*candidates)[i];
+    const auto [it, inserted] = lowest.try_emplace(
+        SnapAndKey(simplices[cand.simplex], tolerance, &cand), i);
+    if (!inserted && cand.simplex < (*candidates)[it->second].simplex) {
+      it->second = i;
+    }
+  }
   thread_local std::vector<uint32_t> order;
-  order.resize(candidates->size());
-  std::iota(order.begin(), order.end(), 0u);
+  order.clear();
+  for (const auto& [key, i] : lowest) order.push_back(i);
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
     return (*candidates)[a].simplex < (*candidates)[b].simplex;
   });
-  thread_local std::unordered_set<uint64_t> seen;
-  seen.clear();
   std::vector<IndexCandidate> kept;
-  for (uint32_t i : order) {
-    IndexCandidate& cand = (*candidates)[i];
-    if (seen.insert(SnapAndKey(simplices[cand.simplex], tolerance, &cand))
-            .second) {
-      kept.push_back(cand);
-    }
-  }
+  kept.reserve(order.size());
+  for (uint32_t i : order) kept.push_back((*candidates)[i]);
   candidates->swap(kept);
 }
 
