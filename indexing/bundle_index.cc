@@ -106,19 +106,23 @@ uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
   return key;
 }
 
-// Candidates in canonical form: sorted by simplex id, snapped, one per
-// support (the lowest id). A projection can keep hundreds (overlapping
-// simplices share their closest face, edge or point): each support's lowest
-// id is found in one pass, and only those are sorted.
+// The candidates of `found` within `bound` of the query, in canonical form
+// in *out: sorted by simplex id, snapped, one per support (the lowest id).
+// A projection can keep hundreds (overlapping simplices share their closest
+// face, edge or point): each support's lowest id is found in one pass, and
+// only those are sorted.
 void Canonicalize(const std::vector<CloudSimplex>& simplices,
-                  double tolerance, std::vector<IndexCandidate>* candidates) {
+                  double tolerance, double bound,
+                  std::vector<IndexCandidate>* found,
+                  std::vector<IndexCandidate>* out) {
   thread_local std::unordered_map<uint64_t, uint32_t> lowest;  // support -> i
   lowest.clear();
-  for (uint32_t i = 0; i < candidates->size(); ++i) {
-    IndexCandidate& cand = (*candidates)[i];
+  for (uint32_t i = 0; i < found->size(); ++i) {
+    IndexCandidate& cand = (*found)[i];
+    if (cand.distance > bound) continue;
     const auto [it, inserted] = lowest.try_emplace(
         SnapAndKey(simplices[cand.simplex], tolerance, &cand), i);
-    if (!inserted && cand.simplex < (*candidates)[it->second].simplex) {
+    if (!inserted && cand.simplex < (*found)[it->second].simplex) {
       it->second = i;
     }
   }
@@ -126,12 +130,11 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
   order.clear();
   for (const auto& [key, i] : lowest) order.push_back(i);
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return (*candidates)[a].simplex < (*candidates)[b].simplex;
+    return (*found)[a].simplex < (*found)[b].simplex;
   });
-  std::vector<IndexCandidate> kept;
-  kept.reserve(order.size());
-  for (uint32_t i : order) kept.push_back((*candidates)[i]);
-  candidates->swap(kept);
+  out->clear();
+  out->reserve(order.size());
+  for (uint32_t i : order) out->push_back((*found)[i]);
 }
 
 }  // namespace
@@ -532,10 +535,8 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
     }
     if (bound == kInf || best + keep < bound) break;
   }
-  for (const IndexCandidate& cand : found) {
-    if (cand.distance <= best + keep) result.candidates.push_back(cand);
-  }
-  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
+  Canonicalize(simplices_, options.inside_tolerance, best + keep, &found,
+               &result.candidates);
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
@@ -594,10 +595,8 @@ IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
     best = std::min(best, cp.distance);
   }
   const double keep = outside_slack_mm + options.on_data_mm;
-  for (const auto& cand : all) {
-    if (cand.distance <= best + keep) result.candidates.push_back(cand);
-  }
-  Canonicalize(simplices_, options.inside_tolerance, &result.candidates);
+  Canonicalize(simplices_, options.inside_tolerance, best + keep, &all,
+               &result.candidates);
   result.inside = best <= options.on_data_mm;
   result.distance = result.inside ? 0.0 : best;
   return result;
