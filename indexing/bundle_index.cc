@@ -157,14 +157,13 @@ void BundleIndex::ComputeBoxes() {
 }
 
 void BundleIndex::ComputeFaces() {
-  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
   tet_faces_.resize(num_tets_);
   std::unordered_map<uint64_t, uint32_t> id_of;
   for (int64_t t = 0; t < num_tets_; ++t) {
     const CloudSimplex& s = simplices_[t];
     for (int f = 0; f < 4; ++f) {
       uint64_t key = 0;
-      for (int i : kFaces[f]) key = (key << 16) | s.corner[i];
+      for (int i : kTetFaces[f]) key = (key << 16) | s.corner[i];
       tet_faces_[t][f] =
           id_of.emplace(key, static_cast<uint32_t>(id_of.size())).first->second;
     }
@@ -174,26 +173,17 @@ void BundleIndex::ComputeFaces() {
 
 ClosestPoint BundleIndex::ClosestPointOutsideTet(int64_t s,
                                                  const Vec3& p) const {
-  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
   const SimplexCorners x = Corners(static_cast<int>(s));
-  ClosestPoint out;
-  out.distance = kInf;
-  for (int f = 0; f < 4; ++f) {
+  return NearestTetFace([&](int f) -> const ClosestPoint& {
     const uint32_t id = tet_faces_[s][f];
     if (face_memo.epoch_of[id] != face_memo.epoch) {
       face_memo.epoch_of[id] = face_memo.epoch;
-      face_memo.point[id] = ClosestPointOnTriangle(
-          x.x[kFaces[f][0]], x.x[kFaces[f][1]], x.x[kFaces[f][2]], p);
+      face_memo.point[id] =
+          ClosestPointOnTriangle(x.x[kTetFaces[f][0]], x.x[kTetFaces[f][1]],
+                                 x.x[kTetFaces[f][2]], p);
     }
-    const ClosestPoint& c = face_memo.point[id];
-    if (c.distance < out.distance) {
-      out.point = c.point;
-      out.distance = c.distance;
-      out.weights = {0, 0, 0, 0};
-      for (int i = 0; i < 3; ++i) out.weights[kFaces[f][i]] = c.weights[i];
-    }
-  }
-  return out;
+    return face_memo.point[id];
+  });
 }
 
 double BundleIndex::BoxDistance(int64_t s, const Vec3& p) const {

@@ -81,19 +81,10 @@ ClosestPoint ClosestPointOnSimplex(const SimplexCorners& s, const Vec3& p,
     out.distance = 0.0;
     return out;
   }
-  static constexpr std::array<std::array<int, 3>, 4> kFaces = kTetFaces;
-  out.distance = std::numeric_limits<double>::infinity();
-  for (const auto& f : kFaces) {
-    const ClosestPoint c = ClosestPointOnTriangle(s.x[f[0]], s.x[f[1]],
-                                                  s.x[f[2]], p);
-    if (c.distance < out.distance) {
-      out.point = c.point;
-      out.distance = c.distance;
-      out.weights = {0, 0, 0, 0};
-      for (int i = 0; i < 3; ++i) out.weights[f[i]] = c.weights[i];
-    }
-  }
-  return out;
+  return NearestTetFace([&](int f) {
+    return ClosestPointOnTriangle(s.x[kTetFaces[f][0]], s.x[kTetFaces[f][1]],
+                                  s.x[kTetFaces[f][2]], p);
+  });
 }
 
 double TetQuality(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {

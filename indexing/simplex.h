@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 
 #include "core/types.h"
 
@@ -12,11 +13,6 @@ namespace hmc {
 
 // Up to four corner positions; `size` 1 (point), 2 (segment), 3 (triangle)
 // or 4 (tetrahedron).
-// A tetrahedron's faces, as corner indices (the order in which
-// ClosestPointOnSimplex tries them).
-inline constexpr std::array<std::array<int, 3>, 4> kTetFaces = {
-    {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}}};
-
 struct SimplexCorners {
   std::array<Vec3, 4> x;
   int size = 4;
@@ -29,6 +25,31 @@ struct ClosestPoint {
   std::array<double, 4> weights = {0, 0, 0, 0};
   double distance = 0.0;  // |point - query| (mm)
 };
+
+// A tetrahedron's faces, as corner indices.
+inline constexpr std::array<std::array<int, 3>, 4> kTetFaces = {
+    {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}}};
+
+// The closest point of a tetrahedron to a p outside it: the nearest of its
+// faces (the first of equals, in kTetFaces order), with the face's weights
+// moved to the tetrahedron's corners. face(f) gives face f's closest point
+// (ClosestPointOnTriangle of its corners in kTetFaces order), so that a
+// caller can reuse faces shared by several tetrahedra.
+template <class FaceClosestPoint>
+ClosestPoint NearestTetFace(FaceClosestPoint&& face) {
+  ClosestPoint out;
+  out.distance = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < 4; ++f) {
+    const ClosestPoint& c = face(f);
+    if (c.distance < out.distance) {
+      out.point = c.point;
+      out.distance = c.distance;
+      out.weights = {0, 0, 0, 0};
+      for (int i = 0; i < 3; ++i) out.weights[kTetFaces[f][i]] = c.weights[i];
+    }
+  }
+  return out;
+}
 
 // Barycentric coordinates of p in tetrahedron (a, b, c, d), unclamped.
 // Returns false for a degenerate tetrahedron (volume 0).
