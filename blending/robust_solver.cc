@@ -191,7 +191,7 @@ Eigen::VectorXd ChooseShapeRidges(
   struct Group {
     Eigen::MatrixXd H;
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
-    std::vector<Eigen::VectorXd> c;
+    Eigen::MatrixXd c;  // N x frames: B^T d per frame
     Eigen::VectorXd c2;
   };
   std::map<std::vector<char>, Group> by_set;
@@ -206,8 +206,9 @@ Eigen::VectorXd ChooseShapeRidges(
       found->second.c2 = Eigen::VectorXd::Zero(N);
     }
     Group& g = found->second;
-    g.c.push_back(global.Project(disp[i]));
-    g.c2 += (g.eig.eigenvectors().transpose() * g.c.back()).cwiseAbs2();
+    g.c.conservativeResize(N, g.c.cols() + 1);
+    g.c.col(g.c.cols() - 1) = global.Project(disp[i]);
+    g.c2 += (g.eig.eigenvectors().transpose() * g.c.rightCols<1>()).cwiseAbs2();
   }
   std::vector<Group*> groups;
   for (auto& [set, group] : by_set) groups.push_back(&group);
@@ -216,7 +217,7 @@ Eigen::VectorXd ChooseShapeRidges(
     double sum = 0.0;
     for (const Group* g : groups) {
       const Eigen::VectorXd& s = g->eig.eigenvalues();
-      const double frames = static_cast<double>(g->c.size());
+      const double frames = static_cast<double>(g->c.cols());
       for (int i = 0; i < N; ++i) {
         const double si = std::max(s[i], 1e-12);
         const double var = noise2 * si + t2 * si * si;
@@ -262,14 +263,13 @@ Eigen::VectorXd ChooseShapeRidges(
       Eigen::MatrixXd A = g.H / s2;
       A.diagonal() += t.cwiseInverse();
       const Eigen::LLT<Eigen::MatrixXd> llt(A);
-      mu2[j] = Eigen::VectorXd::Zero(N);
-      for (const Eigen::VectorXd& c : g.c) {
-        mu2[j] += llt.solve(c / s2).cwiseAbs2();
-      }
+      // The frames' posterior means, all at once (one triangular solve of
+      // N x frames, not one per frame).
+      mu2[j] = llt.solve(g.c / s2).cwiseAbs2().rowwise().sum();
       // diag(A^-1) = squared column norms of L^-1.
       const Eigen::MatrixXd inverse_l =
           llt.matrixL().solve(Eigen::MatrixXd::Identity(N, N));
-      gamma[j] = static_cast<double>(g.c.size()) *
+      gamma[j] = static_cast<double>(g.c.cols()) *
                  (Eigen::VectorXd::Ones(N) -
                   inverse_l.colwise().squaredNorm().transpose().cwiseQuotient(t));
     });
