@@ -101,9 +101,9 @@ class BundleIndex {
  private:
   void BuildGrid(const IndexOptions& options);
   void ComputeBoxes();
-  // tet_faces_: the ids of each tetrahedron's faces, in ClosestPointOnSimplex's
-  // order; a face is an ordered corner triple, so tetrahedra sharing it (with
-  // the corners in the same order, as Build's ascending ones do) share its id.
+  // tet_faces_: the ids of each tetrahedron's faces, in kTetFaces order; a
+  // face is an ordered corner triple, so tetrahedra sharing it (with the
+  // corners in the same order, as Build's ascending ones do) share its id.
   void ComputeFaces();
   // The closest point of tetrahedron s to a p outside it: the nearest of its
   // faces, each face's closest point computed once per query (a projection
