@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "core/error.h"
 #include "core/jaw.h"
@@ -210,7 +211,12 @@ Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
   // wrong sign, does not flip.
   const double eps = 1e-12;
   Eigen::VectorXd w;
+  // The working sets tried: the iteration is deterministic, so meeting one
+  // again means it cycles (possible when Q is far from an M-matrix) and
+  // would run to its iteration cap.
+  std::set<std::vector<Bound>> tried;
   for (int iter = 0; iter < max_iterations; ++iter) {
+    if (!tried.insert(state).second) break;
     w = SolveOnFreeSet(Q, c, state);
     const Eigen::VectorXd g = Q * w - c;
     bool changed = false;
@@ -226,8 +232,8 @@ Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
     }
     if (!changed) return w.cwiseMax(0.0).cwiseMin(1.0);
   }
-  // Did not settle (cycling is possible when Q is far from an M-matrix):
-  // the monotone method from the last point, clamped.
+  // Did not settle (it cycled, or reached the cap): the monotone method
+  // from the last point, clamped.
   return PrimalActiveSet(Q, c, w.cwiseMax(0.0).cwiseMin(1.0),
                          4 * N + max_iterations);
 }
