@@ -59,7 +59,8 @@ Eigen::VectorXd SolveSoftBoxQp(const Eigen::MatrixXd& Q,
                                int max_iterations);
 // min 1/2 w^T Q w - c^T w subject to 0 <= w <= 1. Q: N x N symmetric
 // positive definite; c: N. Returns N weights in [0, 1]. start (optional,
-// N): a guess of the solution whose bounds are tried first.
+// N): a guess of the solution (clamped to the box), from which the bounds
+// are corrected one at a time.
 Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
                                   const Eigen::VectorXd& c, int max_iterations,
                                   const Eigen::VectorXd* start = nullptr);
