@@ -440,10 +440,7 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
         for (int i = 0; i < count; ++i) {
           Vec3 x;
           for (int c = 0; c < 3; ++c) x[c] = neutral_.V(v, c) + acc[c][i];
-          if (rig) {
-            const double w = rig->weights[v];
-            x = (1.0 - w) * x + w * (jaw[i] * x);
-          }
+          if (rig) x = SkinPoint(jaw[i], x, rig->weights[v]);
           out[i].row(v) = x.transpose();
         }
       },

@@ -36,7 +36,7 @@ Rigid3 JawRig::Transform(const JawPose& pose) const {
 
 Vec3 SkinPoint(const JawRig& rig, const JawPose& pose, const Vec3& x,
                double w) {
-  return (1.0 - w) * x + w * (rig.Transform(pose) * x);
+  return SkinPoint(rig.Transform(pose), x, w);
 }
 
 Vec3 UnskinPoint(const JawRig& rig, const JawPose& pose, const Vec3& x,
@@ -62,7 +62,7 @@ MatX3d SkinAll(const JawRig& rig, const JawPose& pose, const MatX3d& X) {
           const Mat3 a = (1.0 - w) * Mat3::Identity() + w * t.linear();
           out.row(v) = a.partialPivLu().solve(x - w * t.translation());
         } else {
-          out.row(v) = ((1.0 - w) * x + w * (t * x)).transpose();
+          out.row(v) = SkinPoint(t, x, w).transpose();
         }
       },
       1024);

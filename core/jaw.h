@@ -39,6 +39,11 @@ struct JawRig {
 
 // Skins one point with weight w: (1 - w) x + w T x.
 Vec3 SkinPoint(const JawRig& rig, const JawPose& pose, const Vec3& x, double w);
+// The same with T = rig.Transform(pose) given (computed once for many
+// points).
+inline Vec3 SkinPoint(const Rigid3& t, const Vec3& x, double w) {
+  return (1.0 - w) * x + w * (t * x);
+}
 // Exact inverse of SkinPoint for the same weight.
 Vec3 UnskinPoint(const JawRig& rig, const JawPose& pose, const Vec3& x,
                  double w);
