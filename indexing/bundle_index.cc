@@ -171,6 +171,30 @@ void BundleIndex::ComputeFaces() {
   num_faces_ = static_cast<uint32_t>(id_of.size());
 }
 
+void BundleIndex::ComputeOuterPlanes() {
+  // 64 directions spread over the sphere (a Fibonacci lattice).
+  constexpr int kDirections = 64;
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  outer_planes_.resize(kDirections);
+  for (int i = 0; i < kDirections; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / kDirections;
+    const double r = std::sqrt(1.0 - z * z);
+    const Vec3 n(r * std::cos(golden * i), r * std::sin(golden * i), z);
+    const double offset = (points_ * n).maxCoeff();
+    outer_planes_[i] << n, offset;
+  }
+  const Eigen::Matrix<double, 2, 3> box = BoundingBox(points_);
+  diameter_ = (box.row(1) - box.row(0)).norm();
+}
+
+double BundleIndex::OuterPlaneDistance(const Vec3& p) const {
+  double out = -kInf;
+  for (const Eigen::Vector4d& plane : outer_planes_) {
+    out = std::max(out, plane.head<3>().dot(p) - plane[3]);
+  }
+  return out;
+}
+
 ClosestPoint BundleIndex::ClosestPointOutsideTet(int64_t s,
                                                  const Vec3& p) const {
   const SimplexCorners x = Corners(static_cast<int>(s));
@@ -316,6 +340,7 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
   st.edges_kept = edges;
   index.ComputeBoxes();
   index.ComputeFaces();
+  index.ComputeOuterPlanes();
   index.BuildGrid(options);
   return index;
 }
@@ -416,6 +441,7 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
       points_.size() * sizeof(double) + point_shapes_.size() * sizeof(int) +
       simplices_.size() * (sizeof(CloudSimplex) + sizeof(boxes_[0])) +
       tet_faces_.size() * sizeof(tet_faces_[0]) +
+      outer_planes_.size() * sizeof(outer_planes_[0]) +
       cell_start_.size() * sizeof(uint32_t) +
       cell_items_.size() * sizeof(uint32_t));
 }
@@ -465,9 +491,20 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
     }
   };
   const size_t cell = (static_cast<size_t>(c[2]) * grid_n_[1] + c[1]) * grid_n_[0] + c[0];
-  CollectInside(cell_items_.data() + cell_start_[cell],
-                cell_items_.data() + cell_start_[cell + 1], p, options,
-                &result.candidates);
+  // p = sum_i w_i x_i with every w_i >= -inside_tolerance (and sum 1) puts
+  // p at most 3 inside_tolerance times the cloud's width beyond any plane
+  // holding the cloud; a lower-dimensional simplex holds p within
+  // on_data_mm of itself. Beyond both (and rounding), none can hold p, and
+  // the inside test is skipped: most bundles that noise puts outside their
+  // clouds are (90 % at 0.5 mm).
+  const double reach = options.on_data_mm +
+                       3.0 * options.inside_tolerance * diameter_ +
+                       1e-12 * (1.0 + diameter_);
+  if (OuterPlaneDistance(p) <= reach) {
+    CollectInside(cell_items_.data() + cell_start_[cell],
+                  cell_items_.data() + cell_start_[cell + 1], p, options,
+                  &result.candidates);
+  }
   if (!result.candidates.empty()) {
     result.inside = true;
     return result;
@@ -655,6 +692,7 @@ BundleIndex BundleIndex::Read(std::istream& in) {
   if (!ok) throw InputError("index cache: inconsistent bundle index");
   index.ComputeBoxes();
   index.ComputeFaces();
+  index.ComputeOuterPlanes();
   return index;
 }
 

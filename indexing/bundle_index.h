@@ -105,6 +105,15 @@ class BundleIndex {
   // face is an ordered corner triple, so tetrahedra sharing it (with the
   // corners in the same order, as Build's ascending ones do) share its id.
   void ComputeFaces();
+  // outer_planes_: planes n . x <= offset, n from a fixed set of directions,
+  // that hold every point of the cloud and so every simplex. A query farther
+  // out than the containment tolerances from one of them is in no simplex,
+  // and Query skips the inside test (a projected bundle's cell lists
+  // hundreds of simplices).
+  void ComputeOuterPlanes();
+  // max over the outer planes of n . p - offset: when positive, a lower
+  // bound of p's distance to the cloud's convex hull.
+  double OuterPlaneDistance(const Vec3& p) const;
   // The closest point of tetrahedron s to a p outside it: the nearest of its
   // faces, each face's closest point computed once per query (a projection
   // reaches hundreds of tetrahedra around the same faces). Equals
@@ -126,6 +135,8 @@ class BundleIndex {
   std::vector<std::array<float, 6>> boxes_;  // per simplex: min xyz, max xyz
   std::vector<std::array<uint32_t, 4>> tet_faces_;  // per tetrahedron
   uint32_t num_faces_ = 0;
+  std::vector<Eigen::Vector4d> outer_planes_;  // n (unit), offset
+  double diameter_ = 0.0;  // of the cloud's bounding box (mm)
   int64_t num_tets_ = 0;
   Vec3 grid_origin_ = Vec3::Zero();
   double cell_size_ = 1.0;

@@ -82,6 +82,38 @@ TEST(BundleIndex, GridQueryMatchesBruteForce) {
   }
 }
 
+// Query skips the inside test for points beyond a plane that holds the
+// cloud; points within on_data_mm of a cloud point (pushed out of the hull
+// in every direction) must still be found inside, as by brute force.
+TEST(BundleIndex, PointsJustOutsideTheHullAreStillOnTheData) {
+  for (int seed = 1; seed <= 3; ++seed) {
+    IndexOptions options = MechanicsOptions();
+    const BundleIndex index = RandomIndex(seed, 9, options);
+    std::mt19937 rng(200 + seed);
+    std::normal_distribution<double> g(0.0, 1.0);
+    int pushed_out = 0;
+    for (int i = 0; i < index.NumPoints(); ++i) {
+      for (int t = 0; t < 20; ++t) {
+        const Vec3 dir = Vec3(g(rng), g(rng), g(rng)).normalized();
+        for (double scale : {0.5, 2.0}) {
+          const Vec3 p = index.points().row(i).transpose() +
+                         scale * options.on_data_mm * dir;
+          const IndexQuery fast = index.Query(p, 0.0, options);
+          const IndexQuery slow = index.QueryBruteForce(p, 0.0, options);
+          ASSERT_EQ(fast.inside, slow.inside);
+          ASSERT_EQ(Ids(fast), Ids(slow));
+          if (scale < 1) {
+            EXPECT_TRUE(fast.inside);
+          } else {
+            pushed_out += !fast.inside;
+          }
+        }
+      }
+    }
+    EXPECT_GT(pushed_out, 0);  // some directions leave the hull
+  }
+}
+
 // At the corners, edge midpoints and face centroids of every kept
 // tetrahedron, the query finds that point of the tetrahedron's face, with
 // convex weights that reproduce it, once: no two candidates have the same
