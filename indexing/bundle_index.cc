@@ -484,12 +484,6 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
                               const IndexOptions& options) const {
   IndexQuery result;
   const std::array<int, 3> c = CellOf(p);
-  auto items_of = [&](int x, int y, int z, auto&& visit) {
-    const size_t id = (static_cast<size_t>(z) * grid_n_[1] + y) * grid_n_[0] + x;
-    for (uint32_t k = cell_start_[id]; k < cell_start_[id + 1]; ++k) {
-      visit(cell_items_[k]);
-    }
-  };
   const size_t cell = (static_cast<size_t>(c[2]) * grid_n_[1] + c[1]) * grid_n_[0] + c[0];
   // p = sum_i w_i x_i with every w_i >= -inside_tolerance (and sum 1) puts
   // p at most 3 inside_tolerance times the cloud's width beyond any plane
@@ -518,38 +512,54 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
   thread_local std::vector<IndexCandidate> found;
   found.clear();
   const double keep = outside_slack_mm + options.on_data_mm;
-  for (int r = 0;; ++r) {
-    for (int z = c[2] - r; z <= c[2] + r; ++z) {
-      if (z < 0 || z >= grid_n_[2]) continue;
-      for (int y = c[1] - r; y <= c[1] + r; ++y) {
-        if (y < 0 || y >= grid_n_[1]) continue;
-        for (int x = c[0] - r; x <= c[0] + r; ++x) {
-          if (x < 0 || x >= grid_n_[0]) continue;
+  auto visit = [&](uint32_t s) {
+    if (!marks.Visit(s)) return;
+    if (BoxDistance(s, p) > best + keep) return;
+    // No tetrahedron holds p (CollectInside found none listed in p's cell,
+    // or p is beyond the cloud's outer planes).
+    const ClosestPoint cp =
+        s < num_tets_ ? ClosestPointOutsideTet(s, p)
+                      : ClosestPointOnSimplex(Corners(s), p,
+                                              options.inside_tolerance);
+    if (cp.distance > best + keep) return;
+    best = std::min(best, cp.distance);
+    IndexCandidate cand;
+    cand.simplex = static_cast<int>(s);
+    cand.weights = cp.weights;
+    cand.point = cp.point;
+    cand.distance = cp.distance;
+    found.push_back(cand);
+  };
+  // The cells at Chebyshev distance r from p's.
+  auto for_ring = [&](int r, auto&& f) {
+    for (int z = std::max(c[2] - r, 0); z <= std::min(c[2] + r, grid_n_[2] - 1); ++z) {
+      for (int y = std::max(c[1] - r, 0); y <= std::min(c[1] + r, grid_n_[1] - 1); ++y) {
+        for (int x = std::max(c[0] - r, 0); x <= std::min(c[0] + r, grid_n_[0] - 1); ++x) {
           if (std::max({std::abs(x - c[0]), std::abs(y - c[1]),
-                        std::abs(z - c[2])}) != r) {
-            continue;
+                        std::abs(z - c[2])}) == r) {
+            f((static_cast<size_t>(z) * grid_n_[1] + y) * grid_n_[0] + x);
           }
-          items_of(x, y, z, [&](uint32_t s) {
-            if (!marks.Visit(s)) return;
-            if (BoxDistance(s, p) > best + keep) return;
-            // No tetrahedron holds p (CollectInside tested every one
-            // listed in p's cell).
-            const ClosestPoint cp =
-                s < num_tets_ ? ClosestPointOutsideTet(s, p)
-                              : ClosestPointOnSimplex(Corners(s), p,
-                                                      options.inside_tolerance);
-            if (cp.distance > best + keep) return;
-            best = std::min(best, cp.distance);
-            IndexCandidate cand;
-            cand.simplex = static_cast<int>(s);
-            cand.weights = cp.weights;
-            cand.point = cp.point;
-            cand.distance = cp.distance;
-            found.push_back(cand);
-          });
         }
       }
     }
+  };
+  const uint32_t num_simplices = static_cast<uint32_t>(simplices_.size());
+  for (int r = 0;; ++r) {
+    // Overlapping simplices are listed in many cells: once a ring lists
+    // more entries than the index has simplices (typically from r = 1 on,
+    // ~6000 entries against ~2000 simplices), one pass over all of them is
+    // cheaper, and ends the search.
+    size_t listed = 0;
+    for_ring(r, [&](size_t id) { listed += cell_start_[id + 1] - cell_start_[id]; });
+    if (r > 0 && listed >= num_simplices) {
+      for (uint32_t s = 0; s < num_simplices; ++s) visit(s);
+      break;
+    }
+    for_ring(r, [&](size_t id) {
+      for (uint32_t k = cell_start_[id]; k < cell_start_[id + 1]; ++k) {
+        visit(cell_items_[k]);
+      }
+    });
     double bound = kInf;
     for (int a = 0; a < 3; ++a) {
       if (c[a] - r > 0) {

@@ -44,13 +44,18 @@ std::set<int> Ids(const IndexQuery& q) {
 // same simplices, closest points and weights), inside and outside, for clouds of several sizes and seeds and coarse/fine grids.
 TEST(BundleIndex, GridQueryMatchesBruteForce) {
   for (int seed = 1; seed <= 4; ++seed) {
-    for (int cells : {1, 5, 16}) {
+    // Small clouds of overlapping simplices (a projection's second ring of
+    // cells lists more entries than there are simplices: one pass over all)
+    // and a larger cloud of short-edged ones (the rings stay sparse).
+    for (int cells : {1, 5, 16, 24}) {
       IndexOptions options = MechanicsOptions();
       options.grid_max_cells = cells;
       options.min_tet_quality = 0.05;
-      const BundleIndex index = RandomIndex(seed, 7 + 2 * seed, options);
+      if (cells == 24) options.max_edge_mm = 4.0;
+      const BundleIndex index =
+          RandomIndex(seed, cells == 24 ? 60 : 7 + 2 * seed, options);
       std::mt19937 rng(100 + seed);
-      std::normal_distribution<double> g(0.0, 9.0);
+      std::normal_distribution<double> g(0.0, cells == 24 ? 4.0 : 9.0);
       int inside = 0, outside = 0;
       for (int t = 0; t < 150; ++t) {
         const Vec3 p(g(rng), g(rng), g(rng));
