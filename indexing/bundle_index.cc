@@ -6,7 +6,6 @@
 #include <numeric>
 #include <tuple>
 #include <unordered_map>
-#include <unordered_set>
 #include <utility>
 
 #include "core/error.h"
@@ -63,6 +62,51 @@ struct FaceMemo {
 };
 thread_local FaceMemo face_memo;
 
+// Per-thread open-addressing map from 64-bit keys (packed supports) to
+// 32-bit values, emptied in O(1) per query by the same epoch scheme: a
+// query inserts hundreds of supports, which std::unordered_map allocated
+// and freed one node at a time.
+struct KeyTable {
+  std::vector<uint64_t> key;
+  std::vector<uint32_t> value;
+  std::vector<uint32_t> epoch_of;
+  uint32_t epoch = 0;
+
+  // Empties the table, with room for n keys at a load of at most 1/2.
+  void Begin(size_t n) {
+    size_t capacity = 64;
+    while (capacity < 2 * n) capacity *= 2;
+    if (capacity > key.size()) {
+      key.assign(capacity, 0);
+      value.assign(capacity, 0);
+      epoch_of.assign(capacity, 0);
+      epoch = 0;
+    }
+    if (++epoch == 0) {
+      std::fill(epoch_of.begin(), epoch_of.end(), 0);
+      epoch = 1;
+    }
+  }
+  // The value stored under k, inserting v first if k is new (then true).
+  std::pair<uint32_t*, bool> Insert(uint64_t k, uint32_t v) {
+    // splitmix64's finaliser: packed ids differ in few bits.
+    uint64_t h = k;
+    h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    h = (h ^ (h >> 27)) * 0x94d049bb133111ebULL;
+    h ^= h >> 31;
+    const size_t mask = key.size() - 1;
+    for (size_t i = h & mask;; i = (i + 1) & mask) {
+      if (epoch_of[i] != epoch) {
+        epoch_of[i] = epoch;
+        key[i] = k;
+        value[i] = v;
+        return {&value[i], true};
+      }
+      if (key[i] == k) return {&value[i], false};
+    }
+  }
+};
+
 // Inside test of a tetrahedron: convex barycentrics within tolerance, clamped
 // and renormalised.
 bool TetContains(const SimplexCorners& s, const Vec3& p, double tolerance,
@@ -80,6 +124,16 @@ bool TetContains(const SimplexCorners& s, const Vec3& p, double tolerance,
   }
   for (double& w : *weights) w /= sum;
   return true;
+}
+
+// Simplex s as a projection candidate with its closest point.
+IndexCandidate Candidate(size_t s, const ClosestPoint& cp) {
+  IndexCandidate cand;
+  cand.simplex = static_cast<int>(s);
+  cand.weights = cp.weights;
+  cand.point = cp.point;
+  cand.distance = cp.distance;
+  return cand;
 }
 
 // Weights below `tolerance` become zero (the rest renormalised); returns
@@ -115,20 +169,23 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
                   double tolerance, double bound,
                   std::vector<IndexCandidate>* found,
                   std::vector<IndexCandidate>* out) {
-  thread_local std::unordered_map<uint64_t, uint32_t> lowest;  // support -> i
-  lowest.clear();
+  // support -> its slot in `order`, which holds the lowest id's index.
+  thread_local KeyTable lowest;
+  lowest.Begin(found->size());
+  thread_local std::vector<uint32_t> order;
+  order.clear();
   for (uint32_t i = 0; i < found->size(); ++i) {
     IndexCandidate& cand = (*found)[i];
     if (cand.distance > bound) continue;
-    const auto [it, inserted] = lowest.try_emplace(
-        SnapAndKey(simplices[cand.simplex], tolerance, &cand), i);
-    if (!inserted && cand.simplex < (*found)[it->second].simplex) {
-      it->second = i;
+    const auto [slot, inserted] = lowest.Insert(
+        SnapAndKey(simplices[cand.simplex], tolerance, &cand),
+        static_cast<uint32_t>(order.size()));
+    if (inserted) {
+      order.push_back(i);
+    } else if (cand.simplex < (*found)[order[*slot]].simplex) {
+      order[*slot] = i;
     }
   }
-  thread_local std::vector<uint32_t> order;
-  order.clear();
-  for (const auto& [key, i] : lowest) order.push_back(i);
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
     return (*found)[a].simplex < (*found)[b].simplex;
   });
@@ -463,8 +520,8 @@ void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
   // would keep, and the tetrahedra come before the lower-dimensional
   // simplices, which are skipped (all but the points) once a tetrahedron
   // holds p.
-  thread_local std::unordered_set<uint64_t> seen;
-  seen.clear();
+  thread_local KeyTable seen;
+  seen.Begin(static_cast<size_t>(end - begin));
   const uint32_t first_point = static_cast<uint32_t>(simplices_.size() - NumPoints());
   for (const uint32_t* it = begin; it != end; ++it) {
     if (*it >= num_tets_ && *it < first_point && !out->empty()) {
@@ -473,7 +530,7 @@ void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
     }
     IndexCandidate cand;
     if (!Contains(*it, p, options, &cand)) continue;
-    if (seen.insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand))
+    if (seen.Insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand), 0)
             .second) {
       out->push_back(cand);
     }
@@ -523,12 +580,7 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
                                               options.inside_tolerance);
     if (cp.distance > best + keep) return;
     best = std::min(best, cp.distance);
-    IndexCandidate cand;
-    cand.simplex = static_cast<int>(s);
-    cand.weights = cp.weights;
-    cand.point = cp.point;
-    cand.distance = cp.distance;
-    found.push_back(cand);
+    found.push_back(Candidate(s, cp));
   };
   // The cells at Chebyshev distance r from p's.
   auto for_ring = [&](int r, auto&& f) {
@@ -623,12 +675,7 @@ IndexQuery BundleIndex::QueryBruteForce(const Vec3& p, double outside_slack_mm,
   for (size_t s = 0; s < simplices_.size(); ++s) {
     const ClosestPoint cp = ClosestPointOnSimplex(
         Corners(static_cast<int>(s)), p, options.inside_tolerance);
-    IndexCandidate cand;
-    cand.simplex = static_cast<int>(s);
-    cand.weights = cp.weights;
-    cand.point = cp.point;
-    cand.distance = cp.distance;
-    all.push_back(cand);
+    all.push_back(Candidate(s, cp));
     best = std::min(best, cp.distance);
   }
   const double keep = outside_slack_mm + options.on_data_mm;
