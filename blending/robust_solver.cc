@@ -393,8 +393,12 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
         // A vertex no shape moves (44 % of the default actor's) needs no
         // weights.
         float acc[3][B] = {};
-        const float* d = data_.VertexDisplacements(static_cast<int>(v));
-        if (data_.vertex_shape_start[v] < data_.vertex_shape_start[v + 1]) {
+        // The shapes that move v and their displacements (the others add 0).
+        const int first = data_.vertex_shape_start[v];
+        const int last = data_.vertex_shape_start[v + 1];
+        const int* moving = data_.vertex_shapes.data();
+        const float* d = data_.vertex_shape_displacement.data();
+        if (first < last) {
           // The local choices, sum_k lambda_k(v) sum_n u_kn d_n(v), and the
           // natural-neighbour weight (share) of the bundles that took the
           // global fit.
@@ -408,8 +412,10 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
                 continue;
               }
               for (const auto& [n, u] : frames[i]->bundles[it.col()].weights) {
+                const int* j = std::lower_bound(moving + first, moving + last, n);
+                if (j == moving + last || *j != n) continue;
                 const float c = static_cast<float>(it.value() * u);
-                const float* dn = d + 3 * n;
+                const float* dn = d + 3 * (j - moving);
                 acc[0][i] += c * dn[0];
                 acc[1][i] += c * dn[1];
                 acc[2][i] += c * dn[2];
@@ -417,10 +423,9 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
             }
           }
           // share * G over the shapes that move v, frame innermost.
-          for (int j = data_.vertex_shape_start[v];
-               j < data_.vertex_shape_start[v + 1]; ++j) {
-            const int n = data_.vertex_shapes[j];
-            const float d0 = d[3 * n], d1 = d[3 * n + 1], d2 = d[3 * n + 2];
+          for (int j = first; j < last; ++j) {
+            const int n = moving[j];
+            const float d0 = d[3 * j], d1 = d[3 * j + 1], d2 = d[3 * j + 2];
             const float* gn = &G[static_cast<size_t>(n) * B];
             for (int i = 0; i < B; ++i) {
               const float w = share[i] * gn[i];

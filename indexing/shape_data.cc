@@ -61,6 +61,8 @@ ShapeData ComputeShapeData(const Actor& actor) {
     for (int n = 0; n < N; ++n) {
       if (b[3 * n] != 0 || b[3 * n + 1] != 0 || b[3 * n + 2] != 0) {
         d.vertex_shapes.push_back(n);
+        d.vertex_shape_displacement.insert(d.vertex_shape_displacement.end(),
+                                           b + 3 * n, b + 3 * n + 3);
       }
     }
     d.vertex_shape_start[v + 1] = static_cast<int>(d.vertex_shapes.size());
