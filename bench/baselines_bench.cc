@@ -27,9 +27,10 @@ struct Base {
       const int a = rng() % N, b = rng() % N;
       MatX3d x = actor.neutral.V;
       for (int v = 0; v < V; ++v) {
-        const float* d = data.VertexDisplacements(v);
+        const float* da = data.Displacement(v, a);
+        const float* db = data.Displacement(v, b);
         for (int i = 0; i < 3; ++i) {
-          x(v, i) += 0.5 * (d[a * 3 + i] + d[b * 3 + i]);
+          x(v, i) += 0.5 * ((da ? da[i] : 0.0f) + (db ? db[i] : 0.0f));
         }
       }
       JawPose pose;

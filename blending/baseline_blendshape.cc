@@ -382,21 +382,20 @@ MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,
                                const JawPose& jaw) const {
   const int V = data_.num_vertices, N = data_.num_shapes;
   HMC_CHECK(weights.size() == N);
-  std::vector<int> used;
-  for (int n = 0; n < N; ++n) {
-    if (weights[n] != 0) used.push_back(n);
-  }
   MatX3d out(V, 3);
   ParallelFor(
       0, V,
       [&](int64_t v) {
         Vec3 x = neutral_.V.row(v).transpose();
-        const float* b = data_.VertexDisplacements(static_cast<int>(v));
-        for (int n : used) {
-          const float* bn = b + static_cast<size_t>(n) * 3;
-          x[0] += weights[n] * bn[0];
-          x[1] += weights[n] * bn[1];
-          x[2] += weights[n] * bn[2];
+        // The shapes that move v, those with a weight (the others add 0).
+        for (int j = data_.vertex_shape_start[v];
+             j < data_.vertex_shape_start[v + 1]; ++j) {
+          const double w = weights[data_.vertex_shapes[j]];
+          if (w == 0) continue;
+          const float* bn = &data_.vertex_shape_displacement[3 * j];
+          x[0] += w * bn[0];
+          x[1] += w * bn[1];
+          x[2] += w * bn[2];
         }
         out.row(v) = x.transpose();
       },

@@ -190,9 +190,8 @@ TEST_P(BlendshapeSeeded, RecoversKnownWeightsInTheBox) {
     MatX3d x = actor.neutral.V;
     for (int v = 0; v < data.num_vertices; ++v) {
       for (int n = 0; n < data.num_shapes; ++n) {
-        for (int a = 0; a < 3; ++a) {
-          x(v, a) += truth[n] * data.VertexDisplacements(v)[3 * n + a];
-        }
+        const float* d = data.Displacement(v, n);
+        for (int a = 0; d && a < 3; ++a) x(v, a) += truth[n] * d[a];
       }
     }
     return data.jaw_rig ? Skin(*data.jaw_rig, jaw, x) : x;

@@ -150,10 +150,9 @@ bool LgiRbfSolver::Blend(FrameSolve* frame, MatX3d* mesh) const {
           w += it.value() * coeffs.row(it.col()).transpose();
         }
         Vec3 x = neutral_.V.row(v).transpose();
-        const float* b = data_.VertexDisplacements(static_cast<int>(v));
         for (int m = 0; m < M; ++m) {
-          const float* bn = b + static_cast<size_t>(shapes[m]) * 3;
-          x += w[m] * Vec3(bn[0], bn[1], bn[2]);
+          const float* bn = data_.Displacement(static_cast<int>(v), shapes[m]);
+          if (bn) x += w[m] * Vec3(bn[0], bn[1], bn[2]);
         }
         unskinned.row(v) = x.transpose();
       },

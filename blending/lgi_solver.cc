@@ -139,7 +139,8 @@ LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
       if (shape < 0) continue;
       double motion = 0;
       for (const auto& [v, lambda] : region[k]) {
-        const float* d = data.VertexDisplacements(v) + 3 * shape;
+        const float* d = data.Displacement(v, shape);
+        if (!d) continue;
         motion += lambda * std::sqrt(double(d[0]) * d[0] + double(d[1]) * d[1] +
                                      double(d[2]) * d[2]);
       }
@@ -544,14 +545,14 @@ MatX3d LgiSolver::Blend(FrameSolve* frame) const {
       0, V,
       [&](int64_t v) {
         Vec3 x = neutral_.V.row(v).transpose();
-        const float* b = data_.VertexDisplacements(static_cast<int>(v));
         for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
                  nn_.weights, v);
              it; ++it) {
           const double lambda = it.value();
           for (const auto& [n, w] : frame->bundles[it.col()].weights) {
+            const float* bn = data_.Displacement(static_cast<int>(v), n);
+            if (!bn) continue;
             const double c = lambda * w;
-            const float* bn = b + static_cast<size_t>(n) * 3;
             x[0] += c * bn[0];
             x[1] += c * bn[1];
             x[2] += c * bn[2];

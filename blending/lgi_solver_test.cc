@@ -152,9 +152,8 @@ TEST(LgiSolver, SurfacePassesThroughVertexBundles) {
         const int n = static_cast<int>(u(rng) * fx.data.num_shapes) %
                       fx.data.num_shapes;
         for (int v = 0; v < x.rows(); ++v) {
-          for (int a = 0; a < 3; ++a) {
-            x(v, a) += w[i] / total * fx.data.VertexDisplacements(v)[n * 3 + a];
-          }
+          const float* d = fx.data.Displacement(v, n);
+          for (int a = 0; d && a < 3; ++a) x(v, a) += w[i] / total * d[a];
         }
       }
       JawPose pose;

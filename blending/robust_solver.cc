@@ -327,12 +327,12 @@ double RobustSolver::NeighbourhoodEnergy(const std::vector<Vec3>& r,
 Vec3 RobustSolver::BlendVertex(const Work& work, const FrameSolve& frame,
                                int v) const {
   Vec3 x = neutral_.V.row(v).transpose();
-  const float* b = data_.VertexDisplacements(v);
   auto add = [&](const std::vector<std::pair<int, double>>& weights,
                  double scale) {
     for (const auto& [n, w] : weights) {
+      const float* bn = data_.Displacement(v, n);
+      if (!bn) continue;
       const double c = scale * w;
-      const float* bn = b + static_cast<size_t>(n) * 3;
       x[0] += c * bn[0];
       x[1] += c * bn[1];
       x[2] += c * bn[2];
@@ -412,10 +412,9 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
                 continue;
               }
               for (const auto& [n, u] : frames[i]->bundles[it.col()].weights) {
-                const int* j = std::lower_bound(moving + first, moving + last, n);
-                if (j == moving + last || *j != n) continue;
+                const float* dn = data_.Displacement(static_cast<int>(v), n);
+                if (!dn) continue;
                 const float c = static_cast<float>(it.value() * u);
-                const float* dn = d + 3 * (j - moving);
                 acc[0][i] += c * dn[0];
                 acc[1][i] += c * dn[1];
                 acc[2][i] += c * dn[2];

@@ -1,5 +1,7 @@
 #include "indexing/shape_data.h"
 
+#include <array>
+
 #include "core/parallel.h"
 
 namespace hmc {
@@ -36,7 +38,13 @@ ShapeData ComputeShapeData(const Actor& actor) {
     }
   }
   d.site_displacement.resize(static_cast<int64_t>(N) * K, 3);
-  d.vertex_displacement.assign(static_cast<size_t>(V) * N * 3, 0.0f);
+  // Per shape, the vertices it moves and by how much; then transposed to
+  // the per-vertex runs (shapes ascending).
+  struct Moved {
+    int vertex;
+    std::array<float, 3> displacement;
+  };
+  std::vector<std::vector<Moved>> moved(N);
   ParallelFor(0, N, [&](int64_t n) {
     const Shape& shape = actor.shapes[n];
     MatX3d unskinned = mesh.V + shape.displacement;
@@ -49,23 +57,32 @@ ShapeData ComputeShapeData(const Actor& actor) {
     }
     if (d.jaw_rig) unskinned = Unskin(*d.jaw_rig, shape.jaw, unskinned);
     for (int v = 0; v < V; ++v) {
+      Moved m{v, {}};
       for (int a = 0; a < 3; ++a) {
-        d.vertex_displacement[(static_cast<size_t>(v) * N + n) * 3 + a] =
-            static_cast<float>(unskinned(v, a) - mesh.V(v, a));
+        m.displacement[a] = static_cast<float>(unskinned(v, a) - mesh.V(v, a));
+      }
+      if (m.displacement != std::array<float, 3>{0.0f, 0.0f, 0.0f}) {
+        moved[n].push_back(m);
       }
     }
   });
   d.vertex_shape_start.assign(V + 1, 0);
+  for (const auto& list : moved) {
+    for (const Moved& m : list) ++d.vertex_shape_start[m.vertex + 1];
+  }
   for (int v = 0; v < V; ++v) {
-    const float* b = d.VertexDisplacements(v);
-    for (int n = 0; n < N; ++n) {
-      if (b[3 * n] != 0 || b[3 * n + 1] != 0 || b[3 * n + 2] != 0) {
-        d.vertex_shapes.push_back(n);
-        d.vertex_shape_displacement.insert(d.vertex_shape_displacement.end(),
-                                           b + 3 * n, b + 3 * n + 3);
-      }
+    d.vertex_shape_start[v + 1] += d.vertex_shape_start[v];
+  }
+  d.vertex_shapes.resize(d.vertex_shape_start[V]);
+  d.vertex_shape_displacement.resize(3 * static_cast<size_t>(d.vertex_shape_start[V]));
+  std::vector<int> fill(d.vertex_shape_start.begin(), d.vertex_shape_start.end() - 1);
+  for (int n = 0; n < N; ++n) {
+    for (const Moved& m : moved[n]) {
+      const int j = fill[m.vertex]++;
+      d.vertex_shapes[j] = n;
+      std::copy(m.displacement.begin(), m.displacement.end(),
+                d.vertex_shape_displacement.begin() + 3 * j);
     }
-    d.vertex_shape_start[v + 1] = static_cast<int>(d.vertex_shapes.size());
   }
   return d;
 }

@@ -11,6 +11,7 @@
 // cloud point.
 #pragma once
 
+#include <algorithm>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,17 +36,15 @@ struct ShapeData {
   // (N K) x 3: row n K + k = unskinned displacement of shape n at bundle k,
   // c*_{k,n} - x0(s_k) (mm).
   MatX3d site_displacement;
-  // V N 3 floats, vertex-major: [(v N + n) 3 + axis] = b*_n(v) (mm). One
-  // vertex's shapes are contiguous, which is what the blend loop reads.
-  std::vector<float> vertex_displacement;
-  // The shapes that move each vertex (b*_n(v) != 0; most shapes are local,
-  // so a blend need not visit the others), CSR over vertices:
-  // vertex_shapes[vertex_shape_start[v] .. vertex_shape_start[v + 1]).
+  // The per-vertex displacements b*_n(v) (mm) of the shapes that move each
+  // vertex (b*_n(v) != 0; most shapes are local, so a blend need not visit
+  // the others), CSR over vertices: shapes ascending in
+  // vertex_shapes[vertex_shape_start[v] .. vertex_shape_start[v + 1]), and
+  // 3 floats per entry in vertex_shape_displacement. One vertex's moving
+  // shapes are one contiguous run, which is what the blend loops read (~13
+  // of 108 shapes per vertex on the default actor).
   std::vector<int> vertex_shape_start;  // V + 1
   std::vector<int> vertex_shapes;
-  // Their displacements, 3 floats per vertex_shapes entry (the same numbers
-  // as vertex_displacement): a blend reads one contiguous run per vertex
-  // instead of one cache line per shape of a num_shapes x 12-byte block.
   std::vector<float> vertex_shape_displacement;
   std::optional<JawRig> jaw_rig;
 
@@ -54,8 +53,13 @@ struct ShapeData {
                                  bundle)
         .transpose();
   }
-  const float* VertexDisplacements(int v) const {
-    return vertex_displacement.data() + static_cast<size_t>(v) * num_shapes * 3;
+  // b*_n(v) (3 floats), or nullptr when shape n does not move vertex v.
+  const float* Displacement(int v, int n) const {
+    const int* first = vertex_shapes.data() + vertex_shape_start[v];
+    const int* last = vertex_shapes.data() + vertex_shape_start[v + 1];
+    const int* it = std::lower_bound(first, last, n);
+    if (it == last || *it != n) return nullptr;
+    return vertex_shape_displacement.data() + 3 * (it - vertex_shapes.data());
   }
 };
 

@@ -19,11 +19,12 @@ double MaxDifferenceOverRegion(const ShapeData& data,
                                const std::vector<int>& region, int a, int b) {
   double worst2 = 0;
   for (int v : region) {
-    const float* row = data.VertexDisplacements(v);
+    const float* da_v = a < 0 ? nullptr : data.Displacement(v, a);
+    const float* db_v = b < 0 ? nullptr : data.Displacement(v, b);
     double d2 = 0;
     for (int axis = 0; axis < 3; ++axis) {
-      const double da = a < 0 ? 0.0 : row[a * 3 + axis];
-      const double db = b < 0 ? 0.0 : row[b * 3 + axis];
+      const double da = da_v ? da_v[axis] : 0.0;
+      const double db = db_v ? db_v[axis] : 0.0;
       d2 += (da - db) * (da - db);
     }
     worst2 = std::max(worst2, d2);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "core/jaw.h"
 
 #include "indexing/lgi_test_actor.h"
 
@@ -56,7 +57,9 @@ TEST(ShapeIndex, DatasetBundlesLandOnCloudPoints) {
 }
 
 // The per-vertex shape lists hold exactly the shapes that move the vertex
-// (what the robust blend visits instead of every shape).
+// (what the blends visit instead of every shape), with their unskinned
+// displacements b*_n(v) = T(theta_n)^-1 (x0 + b_n) - x0, recomputed here
+// from the actor.
 TEST(ShapeData, VertexShapesAreTheShapesThatMoveTheVertex) {
   for (int seed = 1; seed <= 3; ++seed) {
     testing::LgiTestActorOptions o;
@@ -70,13 +73,25 @@ TEST(ShapeData, VertexShapesAreTheShapesThatMoveTheVertex) {
     const ShapeData data = ComputeShapeData(actor);
     ASSERT_EQ(static_cast<int>(data.vertex_shape_start.size()),
               data.num_vertices + 1);
+    std::vector<MatX3d> unskinned;
+    for (const Shape& shape : actor.shapes) {
+      const MatX3d x = actor.neutral.V + shape.displacement;
+      unskinned.push_back(
+          (actor.jaw_rig ? Unskin(*actor.jaw_rig, shape.jaw, x) : x) -
+          actor.neutral.V);
+    }
     int64_t without_shape0 = 0;
     for (int v = 0; v < data.num_vertices; ++v) {
-      const float* b = data.VertexDisplacements(v);
       std::vector<int> moving;
       for (int n = 0; n < data.num_shapes; ++n) {
-        if (b[3 * n] != 0 || b[3 * n + 1] != 0 || b[3 * n + 2] != 0) {
+        const Eigen::Vector3f b = unskinned[n].row(v).transpose().cast<float>();
+        const float* listed_b = data.Displacement(v, n);
+        if (!b.isZero(0)) {
           moving.push_back(n);
+          ASSERT_NE(listed_b, nullptr) << "vertex " << v << " shape " << n;
+          EXPECT_EQ(Eigen::Vector3f(listed_b[0], listed_b[1], listed_b[2]), b);
+        } else {
+          EXPECT_EQ(listed_b, nullptr) << "vertex " << v << " shape " << n;
         }
       }
       const std::vector<int> listed(
