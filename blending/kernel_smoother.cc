@@ -140,6 +140,24 @@ KernelFit KernelSmoother::Fit(const Basis& basis, const Eigen::MatrixXd& z,
   return fit;
 }
 
+double KernelSmoother::LeaveOneOutRss(const Basis& basis,
+                                      const Eigen::MatrixXd& z,
+                                      double lambda) const {
+  HMC_CHECK(z.rows() == basis.mu.size() && z.cols() == 3 && lambda > 0);
+  if (std::isinf(lambda)) return z.squaredNorm();  // U is orthogonal
+  // H = U diag(mu / (mu + lambda)) U^T, r = U diag(lambda / (mu + lambda)) z.
+  const Eigen::VectorXd shrink =
+      (lambda / (basis.mu.array() + lambda)).matrix();
+  const Eigen::MatrixXd r = basis.vectors * (shrink.asDiagonal() * z);
+  const Eigen::VectorXd h_diag = basis.vectors.array().square().matrix() *
+                                 (1.0 - shrink.array()).matrix();
+  double rss = 0.0;
+  for (Eigen::Index i = 0; i < r.rows(); ++i) {
+    rss += r.row(i).squaredNorm() / ((1.0 - h_diag[i]) * (1.0 - h_diag[i]));
+  }
+  return rss;
+}
+
 Eigen::MatrixXd KernelSmoother::Coefficients(const Basis& basis,
                                              const Eigen::MatrixXd& data,
                                              double lambda) const {

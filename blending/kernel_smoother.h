@@ -72,6 +72,14 @@ class KernelSmoother {
   KernelFit Fit(const Basis& basis, const Eigen::MatrixXd& z,
                 double lambda) const;
 
+  // The leave-one-out residual sum of squares over x, y, z (mm^2) of the fit
+  // with smoothing lambda: sum_i |r_i|^2 / (1 - H_ii)^2, r the fit's
+  // residual at the data; for this linear smoother r_i / (1 - H_ii) is
+  // exactly the error with which the fit to the other bundles predicts
+  // bundle i. Infinity: |d|^2 (no correction predicts zero).
+  double LeaveOneOutRss(const Basis& basis, const Eigen::MatrixXd& z,
+                        double lambda) const;
+
   // The coefficients alpha (K x 3, zero for unobserved bundles) of the fit
   // to data (n x 3) with smoothing lambda > 0 (infinity: all zero).
   Eigen::MatrixXd Coefficients(const Basis& basis, const Eigen::MatrixXd& data,

@@ -68,6 +68,49 @@ TEST_P(KernelSmootherSeeds, FitStatisticsMatchTheCoefficients) {
   }
 }
 
+// The leave-one-out identity against refitting without each bundle: the
+// fit to the other bundles, evaluated at the one left out, misses it by
+// exactly r_i / (1 - H_ii). Infinity predicts zero everywhere.
+TEST_P(KernelSmootherSeeds, LeaveOneOutMatchesRefitting) {
+  std::mt19937 rng(200 + GetParam());
+  const int count = 40;
+  const MatX3d sites = RandomSites(count, &rng);
+  const double width = 2 * MedianNearestSiteDistance(sites, 10.0);
+  const KernelSmoother smoother(sites, width);
+  std::vector<char> observed(count, 1);
+  observed[5] = 0;
+  const KernelSmoother::Basis basis = smoother.MakeBasis(observed);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  std::vector<Vec3> d(count);
+  for (int k = 0; k < count; ++k) {
+    d[k] = Smooth(sites.row(k).transpose()) +
+           Vec3(noise(rng), noise(rng), noise(rng));
+  }
+  const Eigen::MatrixXd data = smoother.Data(basis, d);
+  const Eigen::MatrixXd z = basis.vectors.transpose() * data;
+  const auto kernel = GaussianKernelMatrix(sites, sites, width, 1e-300);
+  for (double lambda : {1e-2, 0.3, 3.0, 100.0}) {
+    SCOPED_TRACE(lambda);
+    double brute = 0;
+    for (int left_out : basis.ids) {
+      std::vector<char> others = observed;
+      others[left_out] = 0;
+      const KernelSmoother::Basis b = smoother.MakeBasis(others);
+      const Eigen::MatrixXd alpha =
+          smoother.Coefficients(b, smoother.Data(b, d), lambda);
+      const Vec3 predicted = (kernel.row(left_out) * alpha).transpose();
+      brute += (d[left_out] - predicted).squaredNorm();
+    }
+    EXPECT_NEAR(smoother.LeaveOneOutRss(basis, z, lambda), brute,
+                1e-8 * brute);
+  }
+  double all = 0;
+  for (int k : basis.ids) all += d[k].squaredNorm();
+  EXPECT_NEAR(smoother.LeaveOneOutRss(
+                  basis, z, std::numeric_limits<double>::infinity()),
+              all, 1e-10 * all);
+}
+
 // Cross-validation finds the noise level of a smooth field plus white noise
 // (Wahba's estimate RSS / tr(I - H)), and a known noise level's C_p picks a
 // smoothing close to it.

@@ -69,6 +69,7 @@ struct RobustSolver::Work {
   std::vector<char> observed;              // K
   std::vector<char> use_global;            // K
   std::vector<Vec3> residual;              // K: the blend's, at the bundles
+  double lambda = 0.0;  // the frame's correction smoothing (inf: none)
 
   void SetGlobal(Eigen::VectorXd w) {
     global = std::move(w);
@@ -728,6 +729,25 @@ SolveResult RobustSolver::SolveSequence(
             1e-6);
       }
       report_.width_mm = smoothers_[width_index].width();
+      // Per frame, the correction only where it predicts each bundle's
+      // residual from the other bundles' better than no correction does
+      // (leave-one-out): C_p pooled over the sequence measures the error at
+      // the bundles, and a frame whose residual is a few isolated bundles
+      // (lgi projected them) gains there but loses between the markers.
+      const KernelSmoother& smoother = smoothers_[width_index];
+      for (const int f : good) {
+        Work& wk = work[f];
+        wk.lambda = lambda;
+        if (options_.smoothing > 0) continue;  // given: kept everywhere
+        const KernelSmoother::Basis& basis =
+            bases.Get(width_index, wk.observed);
+        const Eigen::MatrixXd z =
+            basis.vectors.transpose() * smoother.Data(basis, wk.residual);
+        if (smoother.LeaveOneOutRss(basis, z, lambda) >= z.squaredNorm()) {
+          wk.lambda = std::numeric_limits<double>::infinity();
+          ++report_.frames_uncorrected;
+        }
+      }
     }
   }
   report_.lambda = lambda;
@@ -754,7 +774,7 @@ SolveResult RobustSolver::SolveSequence(
         const KernelSmoother::Basis& basis =
             bases.Get(width_index, wk.observed);
         alpha.push_back(smoother.Coefficients(
-            basis, smoother.Data(basis, wk.residual), lambda));
+            basis, smoother.Data(basis, wk.residual), wk.lambda));
       }
     }
     std::vector<MatX3d> blended =
@@ -794,8 +814,11 @@ SolveResult RobustSolver::SolveSequence(
       report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
       report_.selection_noise_mm, report_.prior_noise_mm, report_.ridge,
       report_.ridge_min,
-      report_.lambda > 0 ? fmt::format("width {:.1f} mm, smoothing {:.3g}",
-                                       report_.width_mm, report_.lambda)
+      report_.lambda > 0
+          ? fmt::format("width {:.1f} mm, smoothing {:.3g} ({} of {} frames "
+                        "left uncorrected)",
+                        report_.width_mm, report_.lambda,
+                        report_.frames_uncorrected, good.size())
                          : std::string("none"),
       report_.bundles_local, report_.bundles_global);
   return result;

@@ -102,6 +102,7 @@ struct RobustReport {
   std::vector<double> shape_ridge;  // N: each shape's
   double width_mm = 0.0;      // Gaussian width of the correction (mm)
   double lambda = 0.0;        // its smoothing (0: no correction)
+  int frames_uncorrected = 0; // good frames it left out (leave-one-out)
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice
   int64_t bundles_global = 0;
 };
