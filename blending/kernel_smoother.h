@@ -85,6 +85,11 @@ class KernelSmoother {
   Eigen::MatrixXd Coefficients(const Basis& basis, const Eigen::MatrixXd& data,
                                double lambda) const;
 
+  // The fit at every site, G alpha (K x 3), for coefficients alpha (K x 3).
+  Eigen::MatrixXd AtSites(const Eigen::MatrixXd& alpha) const {
+    return kernel_ * alpha;
+  }
+
   double width() const { return width_; }
 
  private:

@@ -49,6 +49,8 @@ TEST_P(KernelSmootherSeeds, FitStatisticsMatchTheCoefficients) {
     const Eigen::MatrixXd alpha = smoother.Coefficients(basis, data, lambda);
     EXPECT_EQ(alpha.row(3).norm(), 0.0);
     const Eigen::MatrixXd fitted = kernel * alpha;  // at every site
+    EXPECT_LT((smoother.AtSites(alpha) - fitted).norm(),
+              1e-9 * (1 + fitted.norm()));
     double rss = 0;
     for (size_t a = 0; a < basis.ids.size(); ++a) {
       rss += (data.row(a) - fitted.row(basis.ids[a])).squaredNorm();

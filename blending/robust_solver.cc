@@ -41,6 +41,10 @@ void RobustOptions::Register(OptionFields* fields) {
   fields->Add("smoothing", &smoothing,
               "the correction's smoothing lambda (kernel diagonal = 1); 0: "
               "chosen per sequence by C_p");
+  fields->Add("interpolate", &interpolate,
+              "after the correction, interpolate what is left at each bundle "
+              "beyond the noise's universal threshold, with the "
+              "natural-neighbour weights");
   fields->SetGroup("");
 }
 
@@ -69,7 +73,8 @@ struct RobustSolver::Work {
   std::vector<char> observed;              // K
   std::vector<char> use_global;            // K
   std::vector<Vec3> residual;              // K: the blend's, at the bundles
-  double lambda = 0.0;  // the frame's correction smoothing (inf: none)
+  Eigen::MatrixXd alpha;     // K x 3: the kernel's coefficients (empty: none)
+  std::vector<Vec3> offset;  // K: interpolated at the bundles (empty: none)
 
   void SetGlobal(Eigen::VectorXd w) {
     global = std::move(w);
@@ -356,21 +361,37 @@ Vec3 RobustSolver::BlendVertex(const Work& work, const FrameSolve& frame,
 std::vector<MatX3d> RobustSolver::BlendBatch(
     const std::vector<const Work*>& work,
     const std::vector<const FrameSolve*>& frames,
-    const Eigen::SparseMatrix<double, Eigen::RowMajor>* kernel,
-    const std::vector<Eigen::MatrixXd>& alpha) const {
+    const Eigen::SparseMatrix<double, Eigen::RowMajor>* kernel) const {
   constexpr int B = kBlendBatch;
   const int count = static_cast<int>(work.size());
   HMC_CHECK(count <= B && work.size() == frames.size());
   const int N = data_.num_shapes, K = data_.num_bundles;
-  // The correction's coefficients with the frame innermost: [k][c][frame].
-  std::vector<float> a(kernel ? static_cast<size_t>(K) * 3 * B : 0, 0.0f);
-  for (int i = 0; kernel && i < count; ++i) {
-    for (int k = 0; k < K; ++k) {
-      for (int c = 0; c < 3; ++c) {
-        a[(k * 3 + c) * B + i] = static_cast<float>(alpha[i](k, c));
+  // The kernel's coefficients and the interpolated offsets, per bundle,
+  // with the frame innermost: [k][c][frame] (0 in frames without them;
+  // empty when no frame of the batch has any).
+  auto per_bundle = [&](auto&& get) {
+    std::vector<float> out(static_cast<size_t>(K) * 3 * B, 0.0f);
+    bool any = false;
+    for (int i = 0; i < count; ++i) {
+      for (int k = 0; k < K; ++k) {
+        for (int c = 0; c < 3; ++c) {
+          const double value = get(*work[i], k, c);
+          out[(k * 3 + c) * B + i] = static_cast<float>(value);
+          any = any || value != 0.0;
+        }
       }
     }
-  }
+    if (!any) out.clear();
+    return out;
+  };
+  const std::vector<float> a =
+      kernel ? per_bundle([](const Work& w, int k, int c) {
+        return w.alpha.size() > 0 ? w.alpha(k, c) : 0.0;
+      })
+             : std::vector<float>();
+  const std::vector<float> o = per_bundle([](const Work& w, int k, int c) {
+    return w.offset.empty() ? 0.0 : w.offset[k][c];
+  });
   // The global weights, G[n][frame] (0 in frames without a global fit).
   std::vector<float> G(static_cast<size_t>(N) * B, 0.0f);
   for (int i = 0; i < count; ++i) {
@@ -435,17 +456,23 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
             }
           }
         }
-        if (kernel) {
+        // sum_k m(v, k) c_k for per-bundle coefficients c: the kernel's
+        // correction and the interpolated offsets.
+        auto add_row = [&](const Eigen::SparseMatrix<double, Eigen::RowMajor>& m,
+                           const std::vector<float>& coefficients) {
           for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
-                   *kernel, v);
+                   m, v);
                it; ++it) {
-            const float kv = static_cast<float>(it.value());
-            const float* ak = &a[static_cast<size_t>(it.col()) * 3 * B];
+            const float mv = static_cast<float>(it.value());
+            const float* ck =
+                &coefficients[static_cast<size_t>(it.col()) * 3 * B];
             for (int c = 0; c < 3; ++c) {
-              for (int i = 0; i < B; ++i) acc[c][i] += kv * ak[c * B + i];
+              for (int i = 0; i < B; ++i) acc[c][i] += mv * ck[c * B + i];
             }
           }
-        }
+        };
+        if (!a.empty()) add_row(*kernel, a);
+        if (!o.empty()) add_row(nn_.weights, o);
         for (int i = 0; i < count; ++i) {
           Vec3 x;
           for (int c = 0; c < 3; ++c) x[c] = neutral_.V(v, c) + acc[c][i];
@@ -707,7 +734,6 @@ SolveResult RobustSolver::SolveSequence(
             energy > noise ? 1.0 - noise / energy : 0.0;
         residuals[i][k] = keep * wk.residual[k];
       }
-      wk.residual = residuals[i];
     });
     KernelFit fit;
     double noise = options_.noise_mm;
@@ -735,17 +761,38 @@ SolveResult RobustSolver::SolveSequence(
       // the bundles, and a frame whose residual is a few isolated bundles
       // (lgi projected them) gains there but loses between the markers.
       const KernelSmoother& smoother = smoothers_[width_index];
-      for (const int f : good) {
-        Work& wk = work[f];
-        wk.lambda = lambda;
-        if (options_.smoothing > 0) continue;  // given: kept everywhere
+      for (size_t i = 0; i < good.size(); ++i) {
+        Work& wk = work[good[i]];
         const KernelSmoother::Basis& basis =
             bases.Get(width_index, wk.observed);
-        const Eigen::MatrixXd z =
-            basis.vectors.transpose() * smoother.Data(basis, wk.residual);
-        if (smoother.LeaveOneOutRss(basis, z, lambda) >= z.squaredNorm()) {
-          wk.lambda = std::numeric_limits<double>::infinity();
+        const Eigen::MatrixXd data = smoother.Data(basis, residuals[i]);
+        const Eigen::MatrixXd z = basis.vectors.transpose() * data;
+        if (options_.smoothing <= 0 &&  // a given smoothing is kept
+            smoother.LeaveOneOutRss(basis, z, lambda) >= z.squaredNorm()) {
           ++report_.frames_uncorrected;
+          continue;
+        }
+        wk.alpha = smoother.Coefficients(basis, data, lambda);
+      }
+    }
+    // What the kernel leaves at each bundle beyond the noise's universal
+    // threshold, interpolated by the blend's own weights.
+    if (options_.interpolate) {
+      const double tau = std::sqrt(sel_sigma2 * 3.0 * 2.0 * std::log(3.0 * K));
+      report_.threshold_mm = tau;
+      for (const int f : good) {
+        Work& wk = work[f];
+        const Eigen::MatrixXd fitted =
+            wk.alpha.size() > 0 ? smoothers_[width_index].AtSites(wk.alpha)
+                                : Eigen::MatrixXd::Zero(K, 3);
+        wk.offset.assign(K, Vec3::Zero());
+        for (int k = 0; k < K; ++k) {
+          if (!wk.observed[k]) continue;
+          const Vec3 e = wk.residual[k] - fitted.row(k).transpose();
+          const double norm = e.norm();
+          if (norm <= tau) continue;
+          wk.offset[k] = (1.0 - tau / norm) * e;
+          ++report_.bundles_interpolated;
         }
       }
     }
@@ -762,23 +809,14 @@ SolveResult RobustSolver::SolveSequence(
   for (int begin = 0; begin < F;) {
     std::vector<const Work*> batch_work;
     std::vector<const FrameSolve*> batch_frames;
-    std::vector<Eigen::MatrixXd> alpha;
     int end = begin;
     for (; end < F && batch_work.size() < kBlendBatch; ++end) {
       const Work& wk = work[end];
       if (!wk.ok) continue;
       batch_work.push_back(&wk);
       batch_frames.push_back(&result.frames[end]);
-      if (kernel) {
-        const KernelSmoother& smoother = smoothers_[width_index];
-        const KernelSmoother::Basis& basis =
-            bases.Get(width_index, wk.observed);
-        alpha.push_back(smoother.Coefficients(
-            basis, smoother.Data(basis, wk.residual), wk.lambda));
-      }
     }
-    std::vector<MatX3d> blended =
-        BlendBatch(batch_work, batch_frames, kernel, alpha);
+    std::vector<MatX3d> blended = BlendBatch(batch_work, batch_frames, kernel);
     for (int f = begin, i = 0; f < end; ++f) {
       FrameSolve& fs = result.frames[f];
       const Work& wk = work[f];
@@ -809,7 +847,7 @@ SolveResult RobustSolver::SolveSequence(
   spdlog::info(
       "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
       "mm for the shape prior), global ridge per shape {:.3g} (median; "
-      "smallest {:.3g}), correction {}; {} bundles took the local lgi "
+      "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
       "choice, {} the global fit",
       report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
       report_.selection_noise_mm, report_.prior_noise_mm, report_.ridge,
@@ -820,6 +858,10 @@ SolveResult RobustSolver::SolveSequence(
                         report_.width_mm, report_.lambda,
                         report_.frames_uncorrected, good.size())
                          : std::string("none"),
+      options_.interpolate
+          ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
+                        report_.bundles_interpolated, report_.threshold_mm)
+          : std::string("no interpolation"),
       report_.bundles_local, report_.bundles_global);
   return result;
 }

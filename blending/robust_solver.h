@@ -53,7 +53,16 @@
 //      expressions the dataset lacks are then smoothed as cross-validation
 //      predicts best between the bundles, noisy data are not followed. The
 //      correction fades away from the bundles, leaving the far field to the
-//      dataset.
+//      dataset. Per frame, the kernel is dropped where its leave-one-out
+//      error at the bundles is no lower than none's (it would spread a few
+//      isolated residuals between the markers).
+//      What is then left at each bundle, e_k = r_k - f(s_k) (r_k before
+//      shrinking, f the kernel fit), is soft-thresholded at the noise's
+//      universal threshold, tau = sigma_c sqrt(3 * 2 ln 3K) (Donoho &
+//      Johnstone 1994: noise alone rarely exceeds it), and interpolated
+//      with the sewing's own weights, sum_k lambda_k(v) e_k: bundle k's
+//      local surface moved onto the bundle. Noise-free (sigma_c = 0) the
+//      surface passes through every bundle again, projected ones included.
 //   6. Skin with the frame's jaw pose.
 // Bad frames follow the lgi conventions (flagged, previous good mesh kept).
 #pragma once
@@ -85,6 +94,9 @@ struct RobustOptions {
   bool correct = true;     // kernel correction of the residual
   double smoothing = 0.0;  // the correction's lambda (> 0: fixed; 0: chosen
                            // from the data)
+  bool interpolate = true; // then interpolate, with the natural-neighbour
+                           // weights, what is left at each bundle beyond
+                           // the noise's threshold (step 5)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -103,6 +115,8 @@ struct RobustReport {
   double width_mm = 0.0;      // Gaussian width of the correction (mm)
   double lambda = 0.0;        // its smoothing (0: no correction)
   int frames_uncorrected = 0; // good frames it left out (leave-one-out)
+  double threshold_mm = 0.0;  // the interpolation's threshold (step 5)
+  int64_t bundles_interpolated = 0;  // bundle-frames left beyond it
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice
   int64_t bundles_global = 0;
 };
@@ -135,15 +149,15 @@ class RobustSolver {
   Vec3 BlendVertex(const Work& work, const FrameSolve& frame, int v) const;
   // Steps 4-6 for up to kBlendBatch good frames at once, so that each
   // vertex's shape displacements are read from memory once per batch: the
-  // unskinned blend plus, when kernel is given, the correction
-  // sum_k kernel(v, k) alpha[i](k) (alpha[i]: K x 3), skinned by the frame's
-  // jaw when the actor has a jaw rig (as Skin). V x 3 per frame.
+  // unskinned blend plus the correction of step 5, sum_k kernel(v, k)
+  // alpha_k (the frame's Work::alpha, when kernel is given) + sum_k
+  // lambda_k(v) e_k (Work::offset), skinned by the frame's jaw when the
+  // actor has a jaw rig (as Skin). V x 3 per frame.
   static constexpr int kBlendBatch = 8;
   std::vector<MatX3d> BlendBatch(
       const std::vector<const Work*>& work,
       const std::vector<const FrameSolve*>& frames,
-      const Eigen::SparseMatrix<double, Eigen::RowMajor>* kernel,
-      const std::vector<Eigen::MatrixXd>& alpha) const;
+      const Eigen::SparseMatrix<double, Eigen::RowMajor>* kernel) const;
 
   const TriMesh& neutral_;
   const ShapeData& data_;
