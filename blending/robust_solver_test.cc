@@ -43,6 +43,15 @@ double MeanError(const SolveResult& result, const std::vector<MatX3d>& truth) {
   return sum / count;
 }
 
+// The largest distance between an observed bundle and the surface (mm).
+double WorstBundleResidual(const SolveResult& result) {
+  double worst = 0;
+  for (const FrameSolve& frame : result.frames) {
+    for (const BundleSolve& b : frame.bundles) worst = std::max(worst, b.residual);
+  }
+  return worst;
+}
+
 class RobustSeeds : public ::testing::TestWithParam<int> {};
 
 // Verification stays exact: every dataset shape, noise-free, with and
@@ -261,13 +270,8 @@ TEST_P(RobustSeeds, NoiseFreeBundlesAreReachedAgain) {
   const SolveResult plain = fx_without.robust.SolveSequence(frames, {});
   EXPECT_GT(fx.robust.report().bundles_interpolated, 0);
   EXPECT_EQ(fx_without.robust.report().bundles_interpolated, 0);
-  double worst_with = 0, worst_plain = 0;
-  for (size_t f = 0; f < frames.size(); ++f) {
-    for (size_t k = 0; k < fx.actor.markers.size(); ++k) {
-      worst_with = std::max(worst_with, with.frames[f].bundles[k].residual);
-      worst_plain = std::max(worst_plain, plain.frames[f].bundles[k].residual);
-    }
-  }
+  const double worst_with = WorstBundleResidual(with);
+  const double worst_plain = WorstBundleResidual(plain);
   const double e_with = MeanError(with, truth), e_plain = MeanError(plain, truth);
   const double tau = fx.robust.report().threshold_mm;
   std::printf("seed %d: interpolated %.4f, not %.4f mm mean error; worst "
@@ -294,13 +298,8 @@ TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
   EXPECT_GT(lgi.summary.bundles_projected, 0);
   // ~0 against the noise levels that matter (0.1-1 mm).
   EXPECT_LT(fx.robust.report().selection_noise_mm, 0.01);
-  double worst_robust = 0, worst_lgi = 0;
-  for (size_t f = 0; f < frames.size(); ++f) {
-    for (size_t k = 0; k < fx.actor.markers.size(); ++k) {
-      worst_robust = std::max(worst_robust, robust.frames[f].bundles[k].residual);
-      worst_lgi = std::max(worst_lgi, lgi.frames[f].bundles[k].residual);
-    }
-  }
+  const double worst_robust = WorstBundleResidual(robust);
+  const double worst_lgi = WorstBundleResidual(lgi);
   EXPECT_LT(worst_robust, 0.5 * worst_lgi);
   const double e_robust = MeanError(robust, truth), e_lgi = MeanError(lgi, truth);
   std::printf("seed %d: beyond the data, mean error robust %.4f, lgi %.4f mm; "
