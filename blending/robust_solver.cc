@@ -42,9 +42,9 @@ void RobustOptions::Register(OptionFields* fields) {
               "the correction's smoothing lambda (kernel diagonal = 1); 0: "
               "chosen per sequence by C_p");
   fields->Add("interpolate", &interpolate,
-              "after the correction, interpolate what is left at each bundle "
-              "beyond the noise's universal threshold, with the "
-              "natural-neighbour weights");
+              "after the correction (part of it: off with correct), "
+              "interpolate what is left at each bundle beyond the noise's "
+              "universal threshold, with the natural-neighbour weights");
   fields->SetGroup("");
 }
 
