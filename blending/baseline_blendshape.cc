@@ -378,6 +378,37 @@ Eigen::VectorXd BlendshapeSolver::FitWeights(
              : SolveSoftBoxQp(H, c, options_.penalty, options_.max_iterations);
 }
 
+std::vector<Vec3> BlendshapeSolver::LeaveOneOutResiduals(
+    const std::vector<char>& observed, const Eigen::VectorXd& weights,
+    const Eigen::VectorXd& ridge, const std::vector<Vec3>& residual) const {
+  const int K = data_.num_bundles, N = data_.num_shapes;
+  HMC_CHECK(weights.size() == N && ridge.size() == N &&
+            static_cast<int>(residual.size()) == K);
+  std::vector<Vec3> out(K, Vec3::Zero());
+  std::vector<int> free;
+  for (int n = 0; n < N; ++n) {
+    if (weights[n] > 0.0 && weights[n] < 1.0) free.push_back(n);
+  }
+  const int F = static_cast<int>(free.size());
+  const Eigen::MatrixXd normal = Normal(observed);
+  Eigen::MatrixXd m(F, F), bt(F, 3 * K);
+  for (int a = 0; a < F; ++a) {
+    for (int b = 0; b < F; ++b) m(a, b) = normal(free[a], free[b]);
+    m(a, a) += ridge[free[a]];
+    bt.row(a) = site_shapes_.col(free[a]).transpose();
+  }
+  // H_kk = W_k^T W_k with W = L^-1 B_F^T (M = L L^T).
+  const Eigen::MatrixXd w =
+      Eigen::LLT<Eigen::MatrixXd>(m).matrixL().solve(bt);
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
+    const auto wk = w.middleCols(3 * k, 3);
+    const Mat3 h = wk.transpose() * wk;
+    out[k] = (Mat3::Identity() - h).partialPivLu().solve(residual[k]);
+  }
+  return out;
+}
+
 MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,
                                const JawPose& jaw) const {
   const int V = data_.num_vertices, N = data_.num_shapes;

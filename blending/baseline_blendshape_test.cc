@@ -278,6 +278,91 @@ TEST_P(BlendshapeSeeded, SequenceFlagsBadFramesAndKeepsTheLastGoodMesh) {
   EXPECT_EQ(weights[2].size(), data.num_shapes);
 }
 
+// The leave-one-out residuals against refitting without each bundle, with
+// the bounds the full fit found active held (weights outside the box and
+// noise make some active; a few markers are missing; ridges differ per
+// shape).
+TEST_P(BlendshapeSeeded, LeaveOneOutMatchesRefitting) {
+  const int seed = GetParam();
+  const Actor actor = SmallActor(seed, /*inbetweens=*/false);
+  const ShapeData data = ComputeShapeData(actor);
+  const int K = data.num_bundles, N = data.num_shapes;
+  std::mt19937 rng(seed + 300);
+  std::uniform_real_distribution<double> u(-0.3, 1.3), r(0.01, 2.0);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  Eigen::MatrixXd B(3 * K, N);  // B_k = the shapes at bundle k's site
+  for (int k = 0; k < K; ++k) {
+    for (int n = 0; n < N; ++n) B.block<3, 1>(3 * k, n) = data.SiteDisplacement(n, k);
+  }
+  Eigen::VectorXd truth(N), ridge(N);
+  for (int n = 0; n < N; ++n) {
+    truth[n] = u(rng);
+    ridge[n] = r(rng);
+  }
+  std::vector<char> observed(K, 1);
+  for (int k = 0; k < K; k += 9) observed[k] = 0;
+  Eigen::VectorXd d = B * truth;
+  for (int k = 0; k < K; ++k) {
+    for (int c = 0; c < 3; ++c) {
+      d[3 * k + c] = observed[k] ? d[3 * k + c] + noise(rng) : 0.0;
+    }
+  }
+  BlendshapeOptions options;
+  options.bounded = true;
+  const BlendshapeSolver solver(actor.neutral, data, options);
+  const Eigen::VectorXd w = solver.FitWeights(observed, d, ridge);
+  std::vector<int> free, active;
+  for (int n = 0; n < N; ++n) (w[n] > 0 && w[n] < 1 ? free : active).push_back(n);
+  ASSERT_FALSE(active.empty());
+  ASSERT_GT(free.size(), 3u);
+  std::vector<Vec3> residual(K, Vec3::Zero());
+  for (int k = 0; k < K; ++k) {
+    if (observed[k]) residual[k] = d.segment<3>(3 * k) - B.middleRows<3>(3 * k) * w;
+  }
+  const std::vector<Vec3> loo =
+      solver.LeaveOneOutResiduals(observed, w, ridge, residual);
+  int checked = 0;
+  double worst = 0, largest = 0;
+  for (int left = 0; left < K; ++left) {
+    if (!observed[left]) {
+      EXPECT_EQ(loo[left].norm(), 0.0);
+      continue;
+    }
+    // min |B_F w_F - (d - B_A w_A)|^2 + (tikhonov + ridge) |w_F|^2 over
+    // the other observed bundles.
+    const int F = static_cast<int>(free.size());
+    Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(F, F);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(F);
+    for (int k = 0; k < K; ++k) {
+      if (!observed[k] || k == left) continue;
+      Eigen::MatrixXd bf(3, F);
+      for (int a = 0; a < F; ++a) bf.col(a) = B.block<3, 1>(3 * k, free[a]);
+      Vec3 target = d.segment<3>(3 * k);
+      for (int n : active) target -= w[n] * B.block<3, 1>(3 * k, n);
+      normal += bf.transpose() * bf;
+      rhs += bf.transpose() * target;
+    }
+    for (int a = 0; a < F; ++a) normal(a, a) += options.tikhonov + ridge[free[a]];
+    const Eigen::VectorXd wf = normal.ldlt().solve(rhs);
+    Eigen::VectorXd refit = w;
+    for (int a = 0; a < F; ++a) refit[free[a]] = wf[a];
+    const Vec3 expected =
+        d.segment<3>(3 * left) - B.middleRows<3>(3 * left) * refit;
+    worst = std::max(worst, (loo[left] - expected).norm());
+    largest = std::max(largest, expected.norm());
+    ++checked;
+  }
+  EXPECT_GT(checked, K / 2);
+  EXPECT_LT(worst, 1e-7 * (1 + largest));
+  // The prediction misses by more than the fit: the check can fail.
+  double in_fit = 0, left_out = 0;
+  for (int k = 0; k < K; ++k) {
+    in_fit += residual[k].squaredNorm();
+    left_out += loo[k].squaredNorm();
+  }
+  EXPECT_GT(left_out, in_fit);
+}
+
 INSTANTIATE_TEST_SUITE_P(Seeds, BlendshapeSeeded, ::testing::Values(1, 2, 5));
 
 }  // namespace

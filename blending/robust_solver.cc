@@ -620,6 +620,11 @@ SolveResult RobustSolver::SolveSequence(
   };
 
   // Step 2b: the global fit again, with the ridge the noise calls for.
+  // Then its residuals as a fit without each bundle would leave them: lgi's
+  // cost in step 3 is a prediction (its simplex passes through the bundle
+  // and is scored on the neighbours), so the global fit is scored by
+  // prediction too, not by residuals it was fitted to.
+  std::vector<std::vector<Vec3>> global_loo(good.size());
   {
     std::vector<Eigen::VectorXd> disp(good.size());
     for (size_t i = 0; i < good.size(); ++i) {
@@ -653,6 +658,13 @@ SolveResult RobustSolver::SolveSequence(
         }
       }, 1);
     }
+    const Eigen::VectorXd fitted_ridges =
+        sorted.back() > 0 ? ridges : Eigen::VectorXd::Zero(ridges.size());
+    ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+      const Work& wk = work[good[i]];
+      global_loo[i] = global_.LeaveOneOutResiduals(
+          wk.observed, wk.global, fitted_ridges, global_residual[i]);
+    }, 1);
   }
 
   // Step 3: per bundle, lgi's choice or the global weights.
@@ -667,7 +679,7 @@ SolveResult RobustSolver::SolveSequence(
       if (!wk.observed[k]) continue;
       int m = 0;
       const double cost_global =
-          NeighbourhoodEnergy(global_residual[i], wk, k, &m);
+          NeighbourhoodEnergy(global_loo[i], wk, k, &m);
       if (options_.local && fs.bundles[k].cost + per_bundle * m <=
                                 cost_global + m * solve_options_.tie_mm2) {
         wk.use_global[k] = 0;

@@ -28,9 +28,15 @@
 //   3. Per bundle, lgi's choice replaces the global weights where it
 //      explains the bundle's neighbourhood (itself and its natural
 //      neighbours) better than the global fit by more than the noise can:
-//        cost_lgi + margin * 3 sigma^2 * m <= sum_{j in nbhd} |r_j|^2 + tie,
-//      with m the observed bundles of the neighbourhood and tie = m *
-//      solve.tie_mm2. When sigma is estimated, the sigma of this test is
+//        cost_lgi + margin * 3 sigma^2 * m <= sum_{j in nbhd} |r~_j|^2 + tie,
+//      with m the observed bundles of the neighbourhood, tie = m *
+//      solve.tie_mm2, and r~_j = (I - H_jj)^-1 r_j the global fit's
+//      residual left out one bundle at a time (H: its hat matrix over the
+//      shapes inside their bounds, BlendshapeSolver::LeaveOneOutResiduals):
+//      cost_lgi is a prediction (lgi's simplex passes through bundle k and
+//      is scored on the neighbours), so the global fit is scored by
+//      prediction too, not by the residuals it was fitted to. When sigma is
+//      estimated, the sigma of this test is
 //      also bounded by the median over bundles of the better model's
 //      neighbourhood error, min(cost_lgi / 3 (m - 1), cost_global / 3 m):
 //      the global fit's residual counts expressions the dataset lacks as
