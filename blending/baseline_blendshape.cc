@@ -382,6 +382,8 @@ std::vector<Vec3> BlendshapeSolver::LeaveOneOutResiduals(
     const std::vector<char>& observed, const Eigen::VectorXd& weights,
     const Eigen::VectorXd& ridge, const std::vector<Vec3>& residual) const {
   const int K = data_.num_bundles, N = data_.num_shapes;
+  // The free set is read from the bounds: only the bounded fit has them.
+  HMC_CHECK(options_.bounded);
   HMC_CHECK(weights.size() == N && ridge.size() == N &&
             static_cast<int>(residual.size()) == K);
   std::vector<Vec3> out(K, Vec3::Zero());

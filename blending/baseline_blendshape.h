@@ -113,10 +113,11 @@ class BlendshapeSolver {
 
   // Each observed bundle's residual as the fit without that bundle would
   // leave it (leave one out), for weights from FitWeights with these ridges
-  // (N): over the shapes strictly inside their bounds F (the others held at
-  // their bound), H = B_F (B_F^T B_F + lambda I + diag(ridge_F))^-1 B_F^T
-  // and r_k^(-k) = (I - H_kk)^-1 r_k, exact for that fit with its active
-  // bounds held. residual: K residuals r_k = d_k - B_k w (observed ones
+  // (N; bounded fit only): over the shapes strictly inside their bounds F
+  // (the others held at their bound),
+  // H = B_F (B_F^T B_F + lambda I + diag(ridge_F))^-1 B_F^T and
+  // r_k^(-k) = (I - H_kk)^-1 r_k, exact for that fit with its active bounds
+  // held. residual: K residuals r_k = d_k - B_k w (observed ones
   // used); returns K (zero where not observed).
   std::vector<Vec3> LeaveOneOutResiduals(const std::vector<char>& observed,
                                          const Eigen::VectorXd& weights,

@@ -869,7 +869,7 @@ SolveResult RobustSolver::SolveSequence(
                         "left uncorrected)",
                         report_.width_mm, report_.lambda,
                         report_.frames_uncorrected, good.size())
-                         : std::string("none"),
+          : std::string("none"),
       options_.interpolate
           ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
                         report_.bundles_interpolated, report_.threshold_mm)
