@@ -154,7 +154,11 @@ uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
     cand->weights[i] /= sum;
     if (cand->weights[i] > 0) support[n++] = s.corner[i];
   }
-  std::sort(support.begin(), support.end());  // unused slots (0xffff) last
+  // Sorted (unused slots, 0xffff, last) by a 4-element sorting network.
+  auto order = [&](int i, int j) {
+    if (support[j] < support[i]) std::swap(support[i], support[j]);
+  };
+  order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
   uint64_t key = 0;
   for (uint16_t id : support) key = (key << 16) | id;
   return key;
