@@ -232,6 +232,15 @@ void BundleIndex::ComputeFaces() {
   num_faces_ = static_cast<uint32_t>(id_of.size());
 }
 
+void BundleIndex::ComputeTrianglePlanes() {
+  triangle_planes_.clear();
+  for (size_t s = num_tets_; s < simplices_.size() && simplices_[s].size == 3; ++s) {
+    const SimplexCorners x = Corners(static_cast<int>(s));
+    const Vec3 n = (x.x[1] - x.x[0]).cross(x.x[2] - x.x[0]).normalized();
+    triangle_planes_.emplace_back(n[0], n[1], n[2], n.dot(x.x[0]));
+  }
+}
+
 void BundleIndex::ComputeOuterPlanes() {
   // 64 directions spread over the sphere (a Fibonacci lattice).
   constexpr int kDirections = 64;
@@ -402,6 +411,7 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
   index.ComputeBoxes();
   index.ComputeFaces();
   index.ComputeOuterPlanes();
+  index.ComputeTrianglePlanes();
   index.BuildGrid(options);
   return index;
 }
@@ -503,6 +513,7 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
       simplices_.size() * (sizeof(CloudSimplex) + sizeof(boxes_[0])) +
       tet_faces_.size() * sizeof(tet_faces_[0]) +
       outer_planes_.size() * sizeof(outer_planes_[0]) +
+      triangle_planes_.size() * sizeof(triangle_planes_[0]) +
       cell_start_.size() * sizeof(uint32_t) +
       cell_items_.size() * sizeof(uint32_t));
 }
@@ -521,17 +532,15 @@ void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
                                 const Vec3& p, const IndexOptions& options,
                                 std::vector<IndexCandidate>* out) const {
   // Ids ascend, so the first candidate of a support is the one Canonicalize
-  // would keep, and the tetrahedra come before the lower-dimensional
-  // simplices, which are skipped (all but the points) once a tetrahedron
-  // holds p.
+  // would keep. Triangles and edges count even when a tetrahedron holds p:
+  // at a bundle an in-between shape often lies on the line from the neutral
+  // to its extreme, so a bundle between the two is on a tetrahedron's edge
+  // (neutral, extreme) while the in-between's own segment is in no
+  // well-shaped tetrahedron, and only the edge reaches the in-between (the
+  // paper's in-betweens as Steiner points).
   thread_local KeyTable seen;
   seen.Begin(static_cast<size_t>(end - begin));
-  const uint32_t first_point = static_cast<uint32_t>(simplices_.size() - NumPoints());
   for (const uint32_t* it = begin; it != end; ++it) {
-    if (*it >= num_tets_ && *it < first_point && !out->empty()) {
-      it = std::lower_bound(it, end, first_point);
-      if (it == end) break;
-    }
     IndexCandidate cand;
     if (!Contains(*it, p, options, &cand)) continue;
     if (seen.Insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand), 0)
@@ -638,21 +647,24 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
 bool BundleIndex::Contains(int64_t s, const Vec3& p,
                            const IndexOptions& options,
                            IndexCandidate* candidate) const {
-  if (BoxDistance(s, p) > options.on_data_mm) return false;
   if (s < num_tets_) {
-    if (!TetContains(Corners(s), p, options.inside_tolerance,
+    if (BoxDistance(s, p) > options.on_data_mm ||
+        !TetContains(Corners(s), p, options.inside_tolerance,
                      &candidate->weights)) {
       return false;
     }
   } else {
-    const SimplexCorners corners = Corners(s);
-    if (corners.size == 3) {
-      // Off the triangle's plane: no closest-point search needed.
-      const Vec3 n = (corners.x[1] - corners.x[0]).cross(corners.x[2] - corners.x[0]);
-      if (std::abs(n.dot(p - corners.x[0])) > options.on_data_mm * n.norm()) {
+    // A triangle: first one dot product with its plane (a bundle off it is
+    // in no triangle of it; cheaper than the box test).
+    const size_t triangle = static_cast<size_t>(s - num_tets_);
+    if (triangle < triangle_planes_.size()) {
+      const Eigen::Vector4d& plane = triangle_planes_[triangle];
+      if (std::abs(plane.head<3>().dot(p) - plane[3]) > options.on_data_mm) {
         return false;
       }
     }
+    if (BoxDistance(s, p) > options.on_data_mm) return false;
+    const SimplexCorners corners = Corners(s);
     const ClosestPoint cp =
         ClosestPointOnSimplex(corners, p, options.inside_tolerance);
     if (cp.distance > options.on_data_mm) return false;
@@ -754,6 +766,7 @@ BundleIndex BundleIndex::Read(std::istream& in) {
   index.ComputeBoxes();
   index.ComputeFaces();
   index.ComputeOuterPlanes();
+  index.ComputeTrianglePlanes();
   return index;
 }
 
