@@ -136,23 +136,18 @@ IndexCandidate Candidate(size_t s, const ClosestPoint& cp) {
   return cand;
 }
 
-// Weights below `tolerance` become zero (the rest renormalised); returns
-// the candidate's support (its corners of non-zero weight), packed.
+// A candidate's support (its corners of weight >= `tolerance`), packed.
 // Candidates with the same support are the same point of the same face, so
 // the same blend: a bundle on an edge of its cloud lies in every
 // tetrahedron through that edge, and they must not all be scored.
-uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
-                    IndexCandidate* cand) {
-  double sum = 0;
-  for (int i = 0; i < s.size; ++i) {
-    if (cand->weights[i] < tolerance) cand->weights[i] = 0.0;
-    sum += cand->weights[i];
-  }
+uint64_t SupportKey(const CloudSimplex& s, double tolerance,
+                    const IndexCandidate& cand) {
   std::array<uint16_t, 4> support = {0xffff, 0xffff, 0xffff, 0xffff};
   int n = 0;
   for (int i = 0; i < s.size; ++i) {
-    cand->weights[i] /= sum;
-    if (cand->weights[i] > 0) support[n++] = s.corner[i];
+    if (cand.weights[i] >= tolerance && cand.weights[i] > 0) {
+      support[n++] = s.corner[i];
+    }
   }
   // Sorted (unused slots, 0xffff, last) by a 4-element sorting network.
   auto order = [&](int i, int j) {
@@ -162,6 +157,17 @@ uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
   uint64_t key = 0;
   for (uint16_t id : support) key = (key << 16) | id;
   return key;
+}
+
+// Weights below `tolerance` become zero, the rest renormalised (only the
+// candidate kept for its support needs it).
+void Snap(double tolerance, IndexCandidate* cand) {
+  double sum = 0;
+  for (double& w : cand->weights) {
+    if (w < tolerance) w = 0.0;
+    sum += w;
+  }
+  for (double& w : cand->weights) w /= sum;
 }
 
 // The candidates of `found` within `bound` of the query, in canonical form
@@ -182,7 +188,7 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
     IndexCandidate& cand = (*found)[i];
     if (cand.distance > bound) continue;
     const auto [slot, inserted] = lowest.Insert(
-        SnapAndKey(simplices[cand.simplex], tolerance, &cand),
+        SupportKey(simplices[cand.simplex], tolerance, cand),
         static_cast<uint32_t>(order.size()));
     if (inserted) {
       order.push_back(i);
@@ -195,7 +201,10 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
   });
   out->clear();
   out->reserve(order.size());
-  for (uint32_t i : order) out->push_back((*found)[i]);
+  for (uint32_t i : order) {
+    out->push_back((*found)[i]);
+    Snap(tolerance, &out->back());
+  }
 }
 
 }  // namespace
@@ -543,8 +552,9 @@ void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
   for (const uint32_t* it = begin; it != end; ++it) {
     IndexCandidate cand;
     if (!Contains(*it, p, options, &cand)) continue;
-    if (seen.Insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand), 0)
+    if (seen.Insert(SupportKey(simplices_[*it], options.inside_tolerance, cand), 0)
             .second) {
+      Snap(options.inside_tolerance, &cand);
       out->push_back(cand);
     }
   }
