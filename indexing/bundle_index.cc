@@ -136,18 +136,23 @@ IndexCandidate Candidate(size_t s, const ClosestPoint& cp) {
   return cand;
 }
 
-// A candidate's support (its corners of weight >= `tolerance`), packed.
+// Weights below `tolerance` become zero (the rest renormalised); returns
+// the candidate's support (its corners of non-zero weight), packed.
 // Candidates with the same support are the same point of the same face, so
 // the same blend: a bundle on an edge of its cloud lies in every
 // tetrahedron through that edge, and they must not all be scored.
-uint64_t SupportKey(const CloudSimplex& s, double tolerance,
-                    const IndexCandidate& cand) {
+uint64_t SnapAndKey(const CloudSimplex& s, double tolerance,
+                    IndexCandidate* cand) {
+  double sum = 0;
+  for (int i = 0; i < s.size; ++i) {
+    if (cand->weights[i] < tolerance) cand->weights[i] = 0.0;
+    sum += cand->weights[i];
+  }
   std::array<uint16_t, 4> support = {0xffff, 0xffff, 0xffff, 0xffff};
   int n = 0;
   for (int i = 0; i < s.size; ++i) {
-    if (cand.weights[i] >= tolerance && cand.weights[i] > 0) {
-      support[n++] = s.corner[i];
-    }
+    cand->weights[i] /= sum;
+    if (cand->weights[i] > 0) support[n++] = s.corner[i];
   }
   // Sorted (unused slots, 0xffff, last) by a 4-element sorting network.
   auto order = [&](int i, int j) {
@@ -157,17 +162,6 @@ uint64_t SupportKey(const CloudSimplex& s, double tolerance,
   uint64_t key = 0;
   for (uint16_t id : support) key = (key << 16) | id;
   return key;
-}
-
-// Weights below `tolerance` become zero, the rest renormalised (only the
-// candidate kept for its support needs it).
-void Snap(double tolerance, IndexCandidate* cand) {
-  double sum = 0;
-  for (double& w : cand->weights) {
-    if (w < tolerance) w = 0.0;
-    sum += w;
-  }
-  for (double& w : cand->weights) w /= sum;
 }
 
 // The candidates of `found` within `bound` of the query, in canonical form
@@ -188,7 +182,7 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
     IndexCandidate& cand = (*found)[i];
     if (cand.distance > bound) continue;
     const auto [slot, inserted] = lowest.Insert(
-        SupportKey(simplices[cand.simplex], tolerance, cand),
+        SnapAndKey(simplices[cand.simplex], tolerance, &cand),
         static_cast<uint32_t>(order.size()));
     if (inserted) {
       order.push_back(i);
@@ -201,10 +195,7 @@ void Canonicalize(const std::vector<CloudSimplex>& simplices,
   });
   out->clear();
   out->reserve(order.size());
-  for (uint32_t i : order) {
-    out->push_back((*found)[i]);
-    Snap(tolerance, &out->back());
-  }
+  for (uint32_t i : order) out->push_back((*found)[i]);
 }
 
 }  // namespace
@@ -239,15 +230,6 @@ void BundleIndex::ComputeFaces() {
     }
   }
   num_faces_ = static_cast<uint32_t>(id_of.size());
-}
-
-void BundleIndex::ComputeTrianglePlanes() {
-  triangle_planes_.clear();
-  for (size_t s = num_tets_; s < simplices_.size() && simplices_[s].size == 3; ++s) {
-    const SimplexCorners x = Corners(static_cast<int>(s));
-    const Vec3 n = (x.x[1] - x.x[0]).cross(x.x[2] - x.x[0]).normalized();
-    triangle_planes_.emplace_back(n[0], n[1], n[2], n.dot(x.x[0]));
-  }
 }
 
 void BundleIndex::ComputeOuterPlanes() {
@@ -420,7 +402,6 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
   index.ComputeBoxes();
   index.ComputeFaces();
   index.ComputeOuterPlanes();
-  index.ComputeTrianglePlanes();
   index.BuildGrid(options);
   return index;
 }
@@ -522,7 +503,6 @@ void BundleIndex::BuildGrid(const IndexOptions& options) {
       simplices_.size() * (sizeof(CloudSimplex) + sizeof(boxes_[0])) +
       tet_faces_.size() * sizeof(tet_faces_[0]) +
       outer_planes_.size() * sizeof(outer_planes_[0]) +
-      triangle_planes_.size() * sizeof(triangle_planes_[0]) +
       cell_start_.size() * sizeof(uint32_t) +
       cell_items_.size() * sizeof(uint32_t));
 }
@@ -541,20 +521,21 @@ void BundleIndex::CollectInside(const uint32_t* begin, const uint32_t* end,
                                 const Vec3& p, const IndexOptions& options,
                                 std::vector<IndexCandidate>* out) const {
   // Ids ascend, so the first candidate of a support is the one Canonicalize
-  // would keep. Triangles and edges count even when a tetrahedron holds p:
-  // at a bundle an in-between shape often lies on the line from the neutral
-  // to its extreme, so a bundle between the two is on a tetrahedron's edge
-  // (neutral, extreme) while the in-between's own segment is in no
-  // well-shaped tetrahedron, and only the edge reaches the in-between (the
-  // paper's in-betweens as Steiner points).
+  // would keep, and the tetrahedra come before the lower-dimensional
+  // simplices, which are skipped (all but the points) once a tetrahedron
+  // holds p.
   thread_local KeyTable seen;
   seen.Begin(static_cast<size_t>(end - begin));
+  const uint32_t first_point = static_cast<uint32_t>(simplices_.size() - NumPoints());
   for (const uint32_t* it = begin; it != end; ++it) {
+    if (*it >= num_tets_ && *it < first_point && !out->empty()) {
+      it = std::lower_bound(it, end, first_point);
+      if (it == end) break;
+    }
     IndexCandidate cand;
     if (!Contains(*it, p, options, &cand)) continue;
-    if (seen.Insert(SupportKey(simplices_[*it], options.inside_tolerance, cand), 0)
+    if (seen.Insert(SnapAndKey(simplices_[*it], options.inside_tolerance, &cand), 0)
             .second) {
-      Snap(options.inside_tolerance, &cand);
       out->push_back(cand);
     }
   }
@@ -657,24 +638,21 @@ IndexQuery BundleIndex::Query(const Vec3& p, double outside_slack_mm,
 bool BundleIndex::Contains(int64_t s, const Vec3& p,
                            const IndexOptions& options,
                            IndexCandidate* candidate) const {
+  if (BoxDistance(s, p) > options.on_data_mm) return false;
   if (s < num_tets_) {
-    if (BoxDistance(s, p) > options.on_data_mm ||
-        !TetContains(Corners(s), p, options.inside_tolerance,
+    if (!TetContains(Corners(s), p, options.inside_tolerance,
                      &candidate->weights)) {
       return false;
     }
   } else {
-    // A triangle: first one dot product with its plane (a bundle off it is
-    // in no triangle of it; cheaper than the box test).
-    const size_t triangle = static_cast<size_t>(s - num_tets_);
-    if (triangle < triangle_planes_.size()) {
-      const Eigen::Vector4d& plane = triangle_planes_[triangle];
-      if (std::abs(plane.head<3>().dot(p) - plane[3]) > options.on_data_mm) {
+    const SimplexCorners corners = Corners(s);
+    if (corners.size == 3) {
+      // Off the triangle's plane: no closest-point search needed.
+      const Vec3 n = (corners.x[1] - corners.x[0]).cross(corners.x[2] - corners.x[0]);
+      if (std::abs(n.dot(p - corners.x[0])) > options.on_data_mm * n.norm()) {
         return false;
       }
     }
-    if (BoxDistance(s, p) > options.on_data_mm) return false;
-    const SimplexCorners corners = Corners(s);
     const ClosestPoint cp =
         ClosestPointOnSimplex(corners, p, options.inside_tolerance);
     if (cp.distance > options.on_data_mm) return false;
@@ -776,7 +754,6 @@ BundleIndex BundleIndex::Read(std::istream& in) {
   index.ComputeBoxes();
   index.ComputeFaces();
   index.ComputeOuterPlanes();
-  index.ComputeTrianglePlanes();
   return index;
 }
 

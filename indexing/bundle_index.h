@@ -65,10 +65,10 @@ class BundleIndex {
   static BundleIndex Build(const MatX3d& points, std::vector<int> point_shapes,
                            const IndexOptions& options);
 
-  // Every simplex containing p with its convex weights, one per support:
-  // tetrahedra, triangles, edges and points alike (a triangle or an edge
-  // may reach shapes, such as an in-between, that no tetrahedron holding p
-  // has as a corner). When none contains p: the simplices whose
+  // Every simplex containing p with its convex weights, one per support;
+  // the triangles and edges only when no tetrahedron contains p (they stand
+  // in where tetrahedra do not reach; the points are always tested, so a
+  // dataset point stays exact). When none contains p: the simplices whose
   // closest point is within `outside_slack_mm` of the closest distance to
   // the union of simplices (each with its closest point and weights).
   IndexQuery Query(const Vec3& p, double outside_slack_mm,
@@ -111,10 +111,6 @@ class BundleIndex {
   // and Query skips the inside test (a projected bundle's cell lists
   // hundreds of simplices).
   void ComputeOuterPlanes();
-  // triangle_planes_: each triangle's plane n . x = offset (n unit), in the
-  // order of the triangles (the simplices after the tetrahedra): a bundle
-  // off it is rejected by one dot product.
-  void ComputeTrianglePlanes();
   // max over the outer planes of n . p - offset: when positive, a lower
   // bound of p's distance to the cloud's convex hull.
   double OuterPlaneDistance(const Vec3& p) const;
@@ -140,7 +136,6 @@ class BundleIndex {
   std::vector<std::array<uint32_t, 4>> tet_faces_;  // per tetrahedron
   uint32_t num_faces_ = 0;
   std::vector<Eigen::Vector4d> outer_planes_;  // n (unit), offset
-  std::vector<Eigen::Vector4d> triangle_planes_;  // n (unit), offset
   double diameter_ = 0.0;  // of the cloud's bounding box (mm)
   int64_t num_tets_ = 0;
   Vec3 grid_origin_ = Vec3::Zero();

@@ -232,56 +232,6 @@ TEST(BundleIndex, LowDimensionalClouds) {
   EXPECT_EQ(q1.candidates.size(), 1u);
 }
 
-// An in-between shape on the line from the neutral to its extreme (at the
-// bundle): a bundle between the two lies on the edge (neutral, extreme) of a
-// well-shaped tetrahedron, while the in-between's segment to the extreme is
-// in none (its tetrahedra are too thin). The query must still return the
-// in-between's candidate, not only the tetrahedron's.
-TEST(BundleIndex, InBetweenOnItsLineStaysACandidate) {
-  IndexOptions options;  // the default pruning
-  MatX3d cloud(5, 3);
-  cloud << 0, 0, 0,      // 0: neutral
-      4, 0, 0,           // 1: extreme
-      3.5, 0, 0,         // 2: in-between, on the line
-      2, 3.2, 0,         // 3, 4: other shapes, off the line
-      2, 1.6, 2.8;
-  const BundleIndex index = BundleIndex::Build(cloud, {-1, 0, 1, 2, 3}, options);
-  const Vec3 p(3.75, 0, 0);
-  const IndexQuery q = index.Query(p, 0.0, options);
-  ASSERT_TRUE(q.inside);
-  auto support = [&](const IndexCandidate& c) {
-    std::set<int> corners;
-    const CloudSimplex& s = index.simplices()[c.simplex];
-    for (int i = 0; i < s.size; ++i) {
-      if (c.weights[i] > 0) corners.insert(s.corner[i]);
-    }
-    return corners;
-  };
-  bool by_tet = false, by_inbetween = false;
-  for (const IndexCandidate& c : q.candidates) {
-    const std::set<int> corners = support(c);
-    if (corners == std::set<int>{0, 1}) {
-      by_tet = by_tet || index.simplices()[c.simplex].size == 4;
-    }
-    if (corners == std::set<int>{1, 2}) {
-      by_inbetween = true;
-      const CloudSimplex& s = index.simplices()[c.simplex];
-      for (int i = 0; i < s.size; ++i) {
-        if (s.corner[i] == 2) {
-          EXPECT_NEAR(c.weights[i], 0.5, 1e-12);  // (4 - 3.75) / (4 - 3.5)
-        }
-      }
-    }
-    // No tetrahedron has the in-between's segment as an edge.
-    if (index.simplices()[c.simplex].size == 4) {
-      EXPECT_EQ(corners.count(2), 0u) << "tetrahedron " << c.simplex;
-    }
-  }
-  EXPECT_TRUE(by_tet);
-  EXPECT_TRUE(by_inbetween);
-  EXPECT_EQ(Ids(q), Ids(index.QueryBruteForce(p, 0.0, options)));
-}
-
 TEST(BundleIndex, PruningRespectsQualityAndExtent) {
   IndexOptions options = MechanicsOptions();
   options.min_tet_quality = 0.2;
