@@ -241,12 +241,6 @@ TEST_P(RobustSeeds, ThePriorsNoiseIsTheMarkerNoise) {
   }
 }
 
-// Expressions beyond the dataset (shapes exaggerated 1.4x: the bundles fall
-// outside their clouds and lgi projects them), noise-free: robust takes the
-// surface to the bundles, where lgi leaves the projection's error. (Here
-// the global fit does most of it: a shape and its in-between reach 1.4x
-// within the bounds. The correction is chosen on seed 3 only; on seeds 1
-// and 2 C_p prefers none.)
 // Step 5's interpolation, noise-free: what the kernel leaves at the
 // bundles beyond the threshold is carried to the surface, so the surface
 // comes back to within the threshold of every bundle. (On this small actor
@@ -284,6 +278,12 @@ TEST_P(RobustSeeds, NoiseFreeBundlesAreReachedAgain) {
   EXPECT_GT(worst_plain, tau + 0.2 * worst_plain);  // the check can fail
 }
 
+// Expressions beyond the dataset (shapes exaggerated 1.4x: the bundles fall
+// outside their clouds and lgi projects them), noise-free: robust takes the
+// surface to the bundles, where lgi leaves the projection's error. (Here
+// the global fit does most of it: a shape and its in-between reach 1.4x
+// within the bounds. The correction is chosen on seed 3 only; on seeds 1
+// and 2 C_p prefers none.)
 TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
   RobustFixture fx(GetParam(), /*jaw=*/false);
   std::mt19937 rng(800 + GetParam());
