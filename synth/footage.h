@@ -143,6 +143,11 @@ class FootageRenderer {
 
   const HelmetRig& rig() const { return rig_; }
   int NumCameras() const { return static_cast<int>(rig_.cameras.size()); }
+  // Moves camera `camera` on the helmet (a knock, synth/footage_shot.h);
+  // the frames rendered after the call see it there.
+  void SetCamFromHelmet(int camera, const Rigid3& cam_from_helmet) {
+    rig_.cameras[camera].cam_from_helmet = cam_from_helmet;
+  }
 
   // Renders camera `camera` over `samples` (one: no motion blur; several:
   // averaged over the shutter; depth and surface are those of the middle

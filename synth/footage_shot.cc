@@ -23,6 +23,7 @@
 #include "core/mesh_sequence.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
+#include "synth/synth_random.h"
 
 namespace hmc {
 
@@ -35,12 +36,34 @@ void SynthShotOptions::Register(OptionFields* fields) {
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
   rig.Register(fields);
   render.Register(fields);
+  fields->Add("nominal_mm", &nominal_mm,
+              "write calibration.yaml with each camera centre moved by this (mm; the truth goes "
+              "to calibration_true.yaml)");
+  fields->Add("nominal_deg", &nominal_deg, "... and each camera rotated by this (deg)");
+  fields->Add("nominal_focal_pct", &nominal_focal_pct, "... and its focal length scaled by 1 +- this (%)");
+  fields->Add("knock_frame", &knock_frame,
+              "from this frame on, knock_camera is moved (0 = no knock; the moved rig goes to "
+              "calibration_knocked.yaml)");
+  fields->Add("knock_camera", &knock_camera, "the camera knocked");
+  fields->Add("knock_mm", &knock_mm, "the knock's translation (mm)");
+  fields->Add("knock_deg", &knock_deg, "the knock's rotation (deg)");
 }
 
 bool SynthShotOptions::Check() const {
   bool ok = performance.Check() && rig.Check() && render.Check();
   if (video != "ffv1" && video != "png") {
     spdlog::error("synth shot options: video must be ffv1 or png, got '{}'", video);
+    ok = false;
+  }
+  if (!(nominal_mm >= 0 && nominal_mm <= 50 && nominal_deg >= 0 && nominal_deg <= 20 &&
+        nominal_focal_pct >= 0 && nominal_focal_pct <= 20)) {
+    spdlog::error("synth shot options: nominal_mm must be in [0, 50], nominal_deg in [0, 20], "
+                  "nominal_focal_pct in [0, 20]");
+    ok = false;
+  }
+  if (knock_frame < 0 || !(knock_mm >= 0 && knock_mm <= 50 && knock_deg >= 0 && knock_deg <= 20)) {
+    spdlog::error("synth shot options: knock_frame must be >= 0, knock_mm in [0, 50], knock_deg "
+                  "in [0, 20]");
     ok = false;
   }
   if (contact_frames < 0 || contact_frames > 32) {
@@ -159,6 +182,40 @@ void KeepRenderBuffersMapped() {
   mallopt(M_TRIM_THRESHOLD, 512 << 20);
 }
 
+namespace {
+
+Vec3 RandomUnit(SynthRandom* rng) {
+  const Vec3 v(rng->Normal(), rng->Normal(), rng->Normal());
+  return v.normalized();
+}
+
+}  // namespace
+
+Rigid3 KnockPose(const Rigid3& cam_from_helmet, double mm, double deg, uint64_t seed) {
+  SynthRandom rng(seed);
+  const Vec3 move = mm * RandomUnit(&rng);
+  const Mat3 turn = Eigen::AngleAxisd(deg * M_PI / 180, RandomUnit(&rng)).toRotationMatrix();
+  // helmet_from_cam' = (centre + move, R * turn): rotation about the centre.
+  Rigid3 helmet_from_cam = cam_from_helmet.inverse();
+  helmet_from_cam.linear() = Mat3(helmet_from_cam.linear() * turn);
+  helmet_from_cam.translation() += move;
+  return helmet_from_cam.inverse();
+}
+
+HelmetRig PerturbRig(const HelmetRig& rig, double mm, double deg, double focal_pct,
+                     uint64_t seed) {
+  HelmetRig out = rig;
+  for (size_t c = 0; c < out.cameras.size(); ++c) {
+    HelmetCamera& hc = out.cameras[c];
+    const uint64_t stream = SynthRandom::Stream(seed, 0xCA11B000 + c).Next();
+    hc.cam_from_helmet = KnockPose(hc.cam_from_helmet, mm, deg, stream);
+    const double sign = (SynthRandom(stream ^ 1).Uniform() < 0.5) ? -1 : 1;
+    hc.camera.fx *= 1 + sign * focal_pct / 100;
+    hc.camera.fy *= 1 + sign * focal_pct / 100;
+  }
+  return out;
+}
+
 HelmetRig MakeShotRig(const FaceModel& model, const HelmetRigOptions& options) {
   return MakeHelmetRig(options, FaceFrontZ(model.neutral(), options.upper_camera_y),
                        FaceFrontZ(model.neutral(), options.lower_camera_y));
@@ -174,12 +231,47 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   EnsureDirectory(out_dir);
   const PerformanceOptions& perf = options.performance;
   const HelmetRig rig = MakeShotRig(model, options.rig);
-  const FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig,
+  FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig,
                                  options.render, static_cast<uint64_t>(perf.seed));
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
   const int num_cameras = renderer.NumCameras();
-  WriteCalibration(out_dir / "calibration.yaml", rig);
+  const bool perturbed =
+      options.nominal_mm > 0 || options.nominal_deg > 0 || options.nominal_focal_pct > 0;
+  if (perturbed) {
+    WriteCalibration(out_dir / "calibration.yaml",
+                     PerturbRig(rig, options.nominal_mm, options.nominal_deg,
+                                options.nominal_focal_pct, static_cast<uint64_t>(perf.seed)));
+    WriteCalibration(out_dir / "calibration_true.yaml", rig);
+  } else {
+    WriteCalibration(out_dir / "calibration.yaml", rig);
+  }
+  int knock_camera = -1;
+  HelmetRig knocked = rig;
+  if (options.knock_frame > 0) {
+    for (size_t c = 0; c < rig.cameras.size(); ++c) {
+      if (rig.cameras[c].name == options.knock_camera) knock_camera = static_cast<int>(c);
+    }
+    if (knock_camera < 0) {
+      throw InputError("synth shot: knock_camera '" + options.knock_camera + "' is not in the rig");
+    }
+    HelmetCamera& hc = knocked.cameras[knock_camera];
+    hc.cam_from_helmet = KnockPose(hc.cam_from_helmet, options.knock_mm, options.knock_deg,
+                                   SynthRandom::Stream(perf.seed, 0x0C0C).Next());
+    WriteCalibration(out_dir / "calibration_knocked.yaml", knocked);
+  }
+
+  // The tags' corners in the rig before any knock (calibration_true.yaml).
+  std::string tags_csv = "camera,tag,corner,x,y\n";
+  for (int c = 0; c < num_cameras; ++c) {
+    const auto corners = renderer.ProjectTagCorners(c);
+    for (size_t t = 0; t < corners.size(); ++t) {
+      for (int i = 0; i < 4; ++i) {
+        tags_csv += fmt::format("{},{},{},{:.6f},{:.6f}\n", rig.cameras[c].name, rig.tags[t].id,
+                                i, corners[t][i].x(), corners[t][i].y());
+      }
+    }
+  }
 
   std::vector<FrameSink> sinks;
   sinks.reserve(num_cameras);
@@ -217,6 +309,9 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   Progress progress("synth shot", num_frames);
   for (int f = 0; f < num_frames; ++f) {
     const int frame = truth.start_frame + f;
+    if (knock_camera >= 0 && frame == options.knock_frame) {
+      renderer.SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
+    }
     const Eigen::VectorXd& a = performance.activations[f];
     truth.frames.push_back(model.Evaluate(a));
     const MatX3d& X = truth.frames.back();
@@ -301,16 +396,6 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   WriteBundlesCsv(out_dir / "bundles.csv", bundles_head);
   WriteBundlesCsv(out_dir / "bundles_helmet.csv", bundles_helmet);
   WriteJawCsv(out_dir / "jaw.csv", jaw);
-  std::string tags_csv = "camera,tag,corner,x,y\n";
-  for (int c = 0; c < num_cameras; ++c) {
-    const auto corners = renderer.ProjectTagCorners(c);
-    for (size_t t = 0; t < corners.size(); ++t) {
-      for (int i = 0; i < 4; ++i) {
-        tags_csv += fmt::format("{},{},{},{:.6f},{:.6f}\n", rig.cameras[c].name, rig.tags[t].id,
-                                i, corners[t][i].x(), corners[t][i].y());
-      }
-    }
-  }
   WriteFileAtomic(out_dir / "tags_2d.csv", tags_csv);
   truth.topology = actor.neutral;
   WriteMeshSequence(out_dir / "truth.pc2", truth);

@@ -25,6 +25,16 @@ struct SynthShotOptions {
   int threads = 0;                 // worker threads (0 = all cores)
   HelmetRigOptions rig;            // rig.*
   FootageRenderOptions render;     // render.*
+  // Calibration tests (docs/calibration.md, "Synthetic harness"): with any
+  // nominal_* > 0, calibration.yaml is a perturbed "nominal" rig and the true
+  // one is written beside it as calibration_true.yaml.
+  double nominal_mm = 0;           // each camera's centre moved by this (mm, random direction)
+  double nominal_deg = 0;          // each camera rotated by this (deg, random axis)
+  double nominal_focal_pct = 0;    // each camera's fx, fy scaled by 1 +- this (%)
+  int knock_frame = 0;             // from this frame on, knock_camera is moved (0 = no knock)
+  std::string knock_camera = "cam1";  // the camera knocked
+  double knock_mm = 1;             // the knock's translation (mm, random direction)
+  double knock_deg = 0.5;          // the knock's rotation (deg, random axis)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -48,6 +58,14 @@ struct SynthShotSummary {
 // and faulted in again page by page on the next frame: measured 15-17 % of
 // the render time. Process-wide; RunSynthShot calls it.
 void KeepRenderBuffersMapped();
+
+// `rig` with every camera's pose and focal length perturbed as
+// SynthShotOptions::nominal_* say (seeded, deterministic).
+HelmetRig PerturbRig(const HelmetRig& rig, double mm, double deg, double focal_pct,
+                     uint64_t seed);
+// `cam_from_helmet` moved by a rigid change of `mm` and `deg` about the
+// camera centre (seeded direction and axis).
+Rigid3 KnockPose(const Rigid3& cam_from_helmet, double mm, double deg, uint64_t seed);
 
 // The helmet rig the shot uses for `model`'s face.
 HelmetRig MakeShotRig(const FaceModel& model, const HelmetRigOptions& options);

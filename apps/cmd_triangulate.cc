@@ -1,0 +1,142 @@
+// `hmc triangulate --tracks tracks_2d.csv --calibration CAL --out
+//   bundles_helmet.csv [--diagnostics triangulation.csv] [--rays rays.csv]
+//   [--truth SHOT] [--config configs/triangulate.yaml]`: every labelled dot
+// seen by two cameras becomes a 3D bundle in helmet space
+// (triangulation/triangulate.h; method: docs/calibration.md). Writes the
+// bundles, rays.csv (markers seen by one camera), options_used.yaml and,
+// last, summary.json beside --out (docs/formats.md).
+//
+// --tracks may also be a synthetic shot's dots_2d.csv (recognised by its
+// header): --dots centroid takes cx,cy of the `full` dots (what a perfect
+// tracker reports), --dots exact the x,y of every visible dot. --truth SHOT
+// compares the bundles with SHOT/bundles_helmet.csv and counts the coverage
+// of SHOT/dots_2d.csv.
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "apps/command.h"
+#include "core/calibration.h"
+#include "core/file_util.h"
+#include "core/logging.h"
+#include "core/text.h"
+#include "core/tracks_2d.h"
+#include "triangulation/triangulate.h"
+
+namespace hmc {
+namespace {
+
+bool IsDotsFile(const std::filesystem::path& path) {
+  const std::string text = ReadFile(path);
+  bool dots = false, first = true;
+  ForEachLine(text, [&](int, std::string_view line) {
+    if (!first || Trim(line).empty()) return;
+    first = false;
+    dots = Trim(line).substr(0, 24) == "frame,camera,marker,x,y,";
+    dots = dots && line.find("disc") != std::string_view::npos;
+  });
+  return dots;
+}
+
+nlohmann::json AccuracyJson(const TriangulationAccuracy& a) {
+  return {{"compared", a.compared},     {"median_mm", a.median_mm},
+          {"rms_mm", a.rms_mm},         {"p99_mm", a.p99_mm},
+          {"max_mm", a.max_mm},         {"seen_in_every_camera", a.seen_both},
+          {"seen_and_triangulated", a.seen_both_triangulated},
+          {"coverage", a.coverage()}};
+}
+
+}  // namespace
+
+HMC_COMMAND(Triangulate, "", "triangulate",
+            "Triangulate the labelled 2D dots of both cameras into 3D bundles (helmet space)") {
+  auto options = std::make_shared<TriangulateOptions>();
+  auto binding = BindOptions(app, options.get());
+  auto tracks_path = std::make_shared<std::string>();
+  auto calibration = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto diagnostics = std::make_shared<std::string>();
+  auto rays = std::make_shared<std::string>();
+  auto truth = std::make_shared<std::string>();
+  auto dots = std::make_shared<std::string>("centroid");
+  app->add_option("--tracks", *tracks_path,
+                  "tracks_2d.csv (or a synthetic shot's dots_2d.csv, see --dots)")
+      ->required();
+  app->add_option("--calibration", *calibration, "calibration.yaml of the rig")->required();
+  app->add_option("--out", *out, "bundles_helmet.csv to write (helmet space, mm)")->required();
+  app->add_option("--diagnostics", *diagnostics,
+                  "triangulation.csv to write: per marker-frame status, views, residual per "
+                  "camera (px), ray angle (deg), depth uncertainty (mm)");
+  app->add_option("--rays", *rays,
+                  "rays.csv to write for markers seen by one camera (default: beside --out)");
+  app->add_option("--truth", *truth,
+                  "synthetic shot folder: compare with its bundles_helmet.csv and dots_2d.csv");
+  app->add_option("--dots", *dots,
+                  "with a dots_2d.csv as --tracks: centroid (cx,cy of full dots) | exact (x,y)")
+      ->check(CLI::IsMember({"centroid", "exact"}));
+  return [=] {
+    binding->Apply();
+    RequireValid(*options, "triangulate");
+    StageTimer timer("triangulate");
+    const std::filesystem::path out_path(*out);
+    const std::filesystem::path out_dir =
+        out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
+    EnsureDirectory(out_dir);
+    const HelmetRig rig = ReadCalibration(*calibration);
+    const bool from_dots = IsDotsFile(*tracks_path);
+    const std::vector<Track2d> tracks =
+        from_dots ? TracksFromDots(ReadDots2dCsv(*tracks_path), *dots == "centroid")
+                  : ReadTracks2dCsv(*tracks_path);
+    const TriangulateOutput result = RunTriangulate({&rig, &tracks, *tracks_path}, *options);
+    WriteBundlesCsv(out_path, result.bundles);
+    WriteRaysCsv(rays->empty() ? out_dir / "rays.csv" : std::filesystem::path(*rays),
+                 result.rays);
+    if (!diagnostics->empty()) WriteTriangulationCsv(*diagnostics, rig, result.records);
+    WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml");
+
+    const TriangulateSummary& s = result.summary;
+    nlohmann::json gated = nlohmann::json::array();
+    for (const TriangulationRecord& r : result.records) {
+      if (r.status != TriangulationStatus::kGated) continue;
+      nlohmann::json residuals;
+      for (size_t c = 0; c < rig.cameras.size(); ++c) {
+        if (!std::isnan(r.residual_px[c])) residuals[rig.cameras[c].name] = r.residual_px[c];
+      }
+      gated.push_back({{"frame", r.frame}, {"marker", r.marker}, {"residual_px", residuals}});
+    }
+    nlohmann::json summary = {
+        {"stage", "triangulate"},
+        {"tracks", *tracks_path},
+        {"input", from_dots ? "dots_2d " + *dots : "tracks_2d"},
+        {"calibration", *calibration},
+        {"frames", s.frames},
+        {"candidates", s.candidates},
+        {"triangulated", s.triangulated},
+        {"gated", s.gated},
+        {"parallel", s.parallel},
+        {"behind", s.behind},
+        {"no_ray", s.no_ray},
+        {"mono_rays", s.mono},
+        {"rms_residual_px", s.rms_residual_px},
+        {"max_residual_px", s.max_residual_px},
+        {"median_depth_sigma_mm", s.median_depth_sigma_mm},
+        {"seconds", s.seconds},
+        {"gated_list", gated}};
+    spdlog::info("triangulate: {}", s.BriefReport());
+    if (!truth->empty()) {
+      const std::filesystem::path shot(*truth);
+      const TriangulationAccuracy a = EvaluateTriangulation(
+          result.bundles, ReadBundlesCsv(shot / "bundles_helmet.csv"),
+          ReadDots2dCsv(shot / "dots_2d.csv"), static_cast<int>(rig.cameras.size()));
+      summary["truth"] = AccuracyJson(a);
+      spdlog::info("triangulate: {}", a.BriefReport());
+    }
+    WriteFileAtomic(out_dir / "summary.json", summary.dump(1) + "\n");
+    return 0;
+  };
+}
+
+}  // namespace hmc

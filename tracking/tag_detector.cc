@@ -1,0 +1,125 @@
+#include "tracking/tag_detector.h"
+
+#include <algorithm>
+#include <functional>
+
+#include <apriltag/apriltag.h>
+#include <apriltag/common/image_u8.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h10.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagCircle49h12.h>
+#include <apriltag/tagCustom48h12.h>
+#include <apriltag/tagStandard41h12.h>
+#include <apriltag/tagStandard52h13.h>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+
+namespace hmc {
+
+void TagDetectorOptions::Register(OptionFields* fields) {
+  fields->SetGroup("tags");
+  fields->Add("quad_decimate", &quad_decimate,
+              "image decimation before the quad search (1 = full resolution)");
+  fields->Add("quad_sigma", &quad_sigma, "Gaussian blur before the quad search (px; 0 = none)");
+  fields->Add("min_margin", &min_margin, "smallest decision margin of a kept detection");
+  fields->Add("max_hamming", &max_hamming, "most corrected bits of a kept detection");
+  fields->SetGroup("");
+}
+
+bool TagDetectorOptions::Check() const {
+  bool ok = true;
+  if (!(quad_decimate >= 1 && quad_decimate <= 8)) {
+    spdlog::error("tag options: quad_decimate must be in [1, 8]");
+    ok = false;
+  }
+  if (!(quad_sigma >= 0 && quad_sigma <= 10)) {
+    spdlog::error("tag options: quad_sigma must be in [0, 10]");
+    ok = false;
+  }
+  if (!(min_margin >= 0) || max_hamming < 0 || max_hamming > 3) {
+    spdlog::error("tag options: min_margin must be >= 0 and max_hamming in [0, 3]");
+    ok = false;
+  }
+  return ok;
+}
+
+struct TagDetector::Impl {
+  TagDetectorOptions options;
+  apriltag_family_t* family = nullptr;
+  std::function<void(apriltag_family_t*)> destroy;
+  apriltag_detector_t* detector = nullptr;
+};
+
+TagDetector::TagDetector(const std::string& family, const TagDetectorOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->options = options;
+  struct Family {
+    const char* name;
+    apriltag_family_t* (*create)();
+    void (*destroy)(apriltag_family_t*);
+  };
+  static const Family kFamilies[] = {
+      {"tag36h11", tag36h11_create, tag36h11_destroy},
+      {"tag36h10", tag36h10_create, tag36h10_destroy},
+      {"tag25h9", tag25h9_create, tag25h9_destroy},
+      {"tag16h5", tag16h5_create, tag16h5_destroy},
+      {"tagStandard41h12", tagStandard41h12_create, tagStandard41h12_destroy},
+      {"tagStandard52h13", tagStandard52h13_create, tagStandard52h13_destroy},
+      {"tagCircle21h7", tagCircle21h7_create, tagCircle21h7_destroy},
+      {"tagCircle49h12", tagCircle49h12_create, tagCircle49h12_destroy},
+      {"tagCustom48h12", tagCustom48h12_create, tagCustom48h12_destroy},
+  };
+  for (const Family& f : kFamilies) {
+    if (family == f.name) {
+      impl_->family = f.create();
+      impl_->destroy = f.destroy;
+    }
+  }
+  if (impl_->family == nullptr) {
+    throw InputError("unknown AprilTag family '" + family + "'");
+  }
+  impl_->detector = apriltag_detector_create();
+  apriltag_detector_add_family_bits(impl_->detector, impl_->family, options.max_hamming);
+  impl_->detector->quad_decimate = static_cast<float>(options.quad_decimate);
+  impl_->detector->quad_sigma = static_cast<float>(options.quad_sigma);
+  impl_->detector->nthreads = 1;
+  impl_->detector->refine_edges = true;
+}
+
+TagDetector::~TagDetector() {
+  if (impl_->detector) apriltag_detector_destroy(impl_->detector);
+  if (impl_->family) impl_->destroy(impl_->family);
+}
+
+std::vector<TagDetection> TagDetector::Detect(const cv::Mat& grey) const {
+  HMC_CHECK(grey.type() == CV_8UC1);
+  cv::Mat continuous = grey.isContinuous() ? grey : grey.clone();
+  image_u8_t image{continuous.cols, continuous.rows, static_cast<int32_t>(continuous.step),
+                   continuous.data};
+  zarray_t* detections = apriltag_detector_detect(impl_->detector, &image);
+  std::vector<TagDetection> out;
+  for (int i = 0; i < zarray_size(detections); ++i) {
+    apriltag_detection_t* det;
+    zarray_get(detections, i, &det);
+    if (det->decision_margin < impl_->options.min_margin ||
+        det->hamming > impl_->options.max_hamming) {
+      continue;
+    }
+    TagDetection d;
+    d.id = det->id;
+    d.margin = det->decision_margin;
+    d.hamming = det->hamming;
+    for (int k = 0; k < 4; ++k) d.corners[k] = Vec2(det->p[k][0] - 0.5, det->p[k][1] - 0.5);
+    out.push_back(d);
+  }
+  apriltag_detections_destroy(detections);
+  std::sort(out.begin(), out.end(),
+            [](const TagDetection& a, const TagDetection& b) { return a.id < b.id; });
+  return out;
+}
+
+}  // namespace hmc

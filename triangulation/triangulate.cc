@@ -1,0 +1,424 @@
+#include "triangulation/triangulate.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <utility>
+
+#include <ceres/jet.h>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/parallel.h"
+#include "core/text.h"
+
+namespace hmc {
+
+void TriangulateOptions::Register(OptionFields* fields) {
+  fields->Add("gate_px", &gate_px,
+              "largest reprojection residual of a view after refinement (px); larger: "
+              "mislabel or bad detection, dropped");
+  fields->Add("noise_px", &noise_px,
+              "expected accuracy of the tracks (px; floor of the depth uncertainty)");
+  fields->Add("min_ray_angle_deg", &min_ray_angle_deg,
+              "views whose rays meet at a smaller angle are not triangulated (deg)");
+  fields->Add("max_iterations", &max_iterations, "Gauss-Newton iterations of the refinement");
+  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+}
+
+bool TriangulateOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("triangulate options: {}", message);
+    ok = false;
+  };
+  if (!(gate_px > 0 && gate_px < 1e4)) fail("gate_px must be in (0, 1e4)");
+  if (!(noise_px >= 0 && noise_px < 100)) fail("noise_px must be in [0, 100)");
+  if (!(min_ray_angle_deg >= 0 && min_ray_angle_deg < 90)) {
+    fail("min_ray_angle_deg must be in [0, 90)");
+  }
+  if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations must be in [1, 1000]");
+  if (threads < 0) fail("threads must be >= 0");
+  return ok;
+}
+
+const char* TriangulationStatusName(TriangulationStatus status) {
+  switch (status) {
+    case TriangulationStatus::kOk: return "ok";
+    case TriangulationStatus::kGated: return "gated";
+    case TriangulationStatus::kParallel: return "parallel";
+    case TriangulationStatus::kBehind: return "behind";
+    case TriangulationStatus::kNoRay: return "no_ray";
+  }
+  return "?";
+}
+
+std::string TriangulateSummary::BriefReport() const {
+  return fmt::format(
+      "{} frames: {} of {} marker-frames triangulated ({} gated, {} parallel, {} behind, {} "
+      "without a ray), {} mono rays; residual RMS {:.3f} px, max {:.3f} px; median depth "
+      "uncertainty {:.3f} mm; {:.0f} frames/s",
+      frames, triangulated, candidates, gated, parallel, behind, no_ray, mono, rms_residual_px,
+      max_residual_px, median_depth_sigma_mm, seconds > 0 ? frames / seconds : 0.0);
+}
+
+std::string TriangulationAccuracy::BriefReport() const {
+  return fmt::format(
+      "bundle error over {} marker-frames: median {:.4f} mm, RMS {:.4f} mm, p99 {:.4f} mm, max "
+      "{:.4f} mm; {} of {} marker-frames seen in every camera triangulated ({:.2f} %)",
+      compared, median_mm, rms_mm, p99_mm, max_mm, seen_both_triangulated, seen_both,
+      100 * coverage());
+}
+
+namespace {
+
+struct View {
+  int camera;
+  Vec2 pixel;
+};
+
+// Residuals (2 per view) and optionally their 2V x 3 Jacobian at p.
+bool Residuals(const HelmetRig& rig, const std::vector<View>& views, const Vec3& p,
+               Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+  using Jet = ceres::Jet<double, 3>;
+  const int n = static_cast<int>(views.size());
+  r->resize(2 * n);
+  if (J) J->resize(2 * n, 3);
+  Jet pj[3];
+  for (int i = 0; i < 3; ++i) pj[i] = Jet(p[i], i);
+  for (int v = 0; v < n; ++v) {
+    const HelmetCamera& hc = rig.cameras[views[v].camera];
+    const auto params = hc.camera.Params();
+    Jet intrinsics[kNumFisheyeParams];
+    for (int i = 0; i < kNumFisheyeParams; ++i) intrinsics[i] = Jet(params[i]);
+    const Mat3& R = hc.cam_from_helmet.linear();
+    const Vec3& t = hc.cam_from_helmet.translation();
+    Jet q[3];
+    for (int i = 0; i < 3; ++i) {
+      q[i] = Jet(t[i]) + R(i, 0) * pj[0] + R(i, 1) * pj[1] + R(i, 2) * pj[2];
+    }
+    Jet pixel[2];
+    if (!FisheyeCamera::Project(intrinsics, q, pixel)) return false;
+    for (int k = 0; k < 2; ++k) {
+      (*r)[2 * v + k] = pixel[k].a - views[v].pixel[k];
+      if (J) J->row(2 * v + k) = pixel[k].v.transpose();
+    }
+  }
+  return true;
+}
+
+void Triangulate(const HelmetRig& rig, const std::vector<View>& views,
+                 const TriangulateOptions& options, TriangulationRecord* record) {
+  const int n = static_cast<int>(views.size());
+  record->views = n;
+  std::vector<Vec3> origins(n), directions(n);
+  for (int v = 0; v < n; ++v) {
+    const HelmetCamera& hc = rig.cameras[views[v].camera];
+    Vec3 bearing;
+    if (!hc.camera.Unproject(views[v].pixel, &bearing)) {
+      record->status = TriangulationStatus::kNoRay;
+      return;
+    }
+    const Rigid3 helmet_from_cam = hc.cam_from_helmet.inverse();
+    origins[v] = helmet_from_cam.translation();
+    directions[v] = (helmet_from_cam.linear() * bearing).normalized();
+  }
+  double max_angle = 0;
+  for (int a = 0; a < n; ++a) {
+    for (int b = a + 1; b < n; ++b) {
+      const double c = std::clamp(directions[a].dot(directions[b]), -1.0, 1.0);
+      max_angle = std::max(max_angle, std::acos(c) * 180 / M_PI);
+    }
+  }
+  record->ray_angle_deg = max_angle;
+  if (max_angle < options.min_ray_angle_deg) {
+    record->status = TriangulationStatus::kParallel;
+    return;
+  }
+  // Least-squares midpoint: sum_c (I - d d^T) p = sum_c (I - d d^T) o.
+  Mat3 A = Mat3::Zero();
+  Vec3 b = Vec3::Zero();
+  for (int v = 0; v < n; ++v) {
+    const Mat3 P = Mat3::Identity() - directions[v] * directions[v].transpose();
+    A += P;
+    b += P * origins[v];
+  }
+  Vec3 p = A.ldlt().solve(b);
+  for (int v = 0; v < n; ++v) {
+    if ((p - origins[v]).dot(directions[v]) <= 0) {
+      record->status = TriangulationStatus::kBehind;
+      record->p_in_helmet = p;
+      return;
+    }
+  }
+  // Gauss-Newton with step halving on the reprojection error.
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  if (!Residuals(rig, views, p, &r, &J)) {
+    record->status = TriangulationStatus::kBehind;
+    record->p_in_helmet = p;
+    return;
+  }
+  double cost = r.squaredNorm();
+  for (int it = 0; it < options.max_iterations; ++it) {
+    const Mat3 JtJ = J.transpose() * J;
+    const Vec3 step = -JtJ.ldlt().solve(J.transpose() * r);
+    if (!step.allFinite()) break;
+    double scale = 1;
+    bool improved = false;
+    Eigen::VectorXd r_new;
+    Eigen::MatrixXd J_new;
+    for (int halving = 0; halving < 8; ++halving, scale *= 0.5) {
+      const Vec3 candidate = p + scale * step;
+      if (Residuals(rig, views, candidate, &r_new, &J_new) && r_new.squaredNorm() <= cost) {
+        p = candidate;
+        r = r_new;
+        J = J_new;
+        improved = r_new.squaredNorm() < cost;
+        cost = r_new.squaredNorm();
+        break;
+      }
+    }
+    if (!improved || (scale * step).norm() < 1e-12) break;
+  }
+  record->p_in_helmet = p;
+  record->residual_px.assign(rig.cameras.size(), std::numeric_limits<double>::quiet_NaN());
+  double worst = 0;
+  for (int v = 0; v < n; ++v) {
+    const double e = r.segment<2>(2 * v).norm();
+    record->residual_px[views[v].camera] = e;
+    worst = std::max(worst, e);
+  }
+  for (int v = 0; v < n; ++v) {
+    if ((p - origins[v]).dot(directions[v]) <= 0) {
+      record->status = TriangulationStatus::kBehind;
+      return;
+    }
+  }
+  const int dof = 2 * n - 3;
+  const double s2 = std::max(dof > 0 ? cost / dof : 0.0, options.noise_px * options.noise_px);
+  const Mat3 cov = s2 * (J.transpose() * J).inverse();
+  const double var = directions[0].dot(cov * directions[0]);
+  record->depth_sigma_mm = std::sqrt(std::max(0.0, var));
+  record->status = worst > options.gate_px ? TriangulationStatus::kGated : TriangulationStatus::kOk;
+}
+
+std::string Num(double x) { return fmt::format("{:.9g}", x); }
+
+}  // namespace
+
+TriangulateOutput RunTriangulate(const TriangulateInput& input,
+                                 const TriangulateOptions& options) {
+  if (!options.Check()) throw InputError("invalid triangulate options (see the message above)");
+  HMC_CHECK(input.rig != nullptr && input.tracks != nullptr);
+  const HelmetRig& rig = *input.rig;
+  std::map<std::string, int> camera_index;
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    camera_index[rig.cameras[c].name] = static_cast<int>(c);
+  }
+  // Group the tracks by frame and marker.
+  struct Observation {
+    std::string marker;
+    std::vector<View> views;
+  };
+  std::map<int, std::map<std::string, std::vector<View>>> by_frame;
+  for (const Track2d& t : *input.tracks) {
+    const auto it = camera_index.find(t.camera);
+    if (it == camera_index.end()) {
+      ThrowInputError(input.tracks_path, 0,
+                      "camera '{}' of the tracks is not in the calibration (frame {}, marker {})",
+                      t.camera, t.frame, t.marker);
+    }
+    by_frame[t.frame][t.marker].push_back({it->second, t.pixel});
+  }
+  std::vector<int> frames;
+  std::vector<std::vector<Observation>> per_frame;
+  for (auto& [frame, markers] : by_frame) {
+    frames.push_back(frame);
+    per_frame.emplace_back();
+    for (auto& [marker, views] : markers) {
+      std::sort(views.begin(), views.end(),
+                [](const View& a, const View& b) { return a.camera < b.camera; });
+      per_frame.back().push_back({marker, std::move(views)});
+    }
+  }
+  const int num_frames = static_cast<int>(frames.size());
+  std::vector<std::vector<TriangulationRecord>> records(num_frames);
+  std::vector<std::vector<MonoRay>> rays(num_frames);
+  ThreadLimit limit(options.threads);
+  const auto start = std::chrono::steady_clock::now();
+  ParallelFor(0, num_frames, [&](int64_t f) {
+    for (const Observation& obs : per_frame[f]) {
+      if (obs.views.size() == 1) {
+        const HelmetCamera& hc = rig.cameras[obs.views[0].camera];
+        Vec3 bearing;
+        if (!hc.camera.Unproject(obs.views[0].pixel, &bearing)) continue;
+        const Rigid3 helmet_from_cam = hc.cam_from_helmet.inverse();
+        rays[f].push_back({frames[f], obs.marker, hc.name, helmet_from_cam.translation(),
+                           (helmet_from_cam.linear() * bearing).normalized()});
+        continue;
+      }
+      TriangulationRecord record;
+      record.frame = frames[f];
+      record.marker = obs.marker;
+      record.residual_px.assign(rig.cameras.size(), std::numeric_limits<double>::quiet_NaN());
+      Triangulate(rig, obs.views, options, &record);
+      records[f].push_back(std::move(record));
+    }
+  }, 4);
+  TriangulateOutput out;
+  out.summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  TriangulateSummary& s = out.summary;
+  s.frames = num_frames;
+  double sum_sq = 0;
+  int num_views = 0;
+  std::vector<double> sigmas;
+  for (int f = 0; f < num_frames; ++f) {
+    BundleFrame bundle_frame;
+    bundle_frame.frame = frames[f];
+    for (TriangulationRecord& record : records[f]) {
+      ++s.candidates;
+      switch (record.status) {
+        case TriangulationStatus::kOk:
+          ++s.triangulated;
+          bundle_frame.bundles[record.marker] = record.p_in_helmet;
+          for (double e : record.residual_px) {
+            if (std::isnan(e)) continue;
+            sum_sq += e * e;
+            ++num_views;
+            s.max_residual_px = std::max(s.max_residual_px, e);
+          }
+          sigmas.push_back(record.depth_sigma_mm);
+          break;
+        case TriangulationStatus::kGated: ++s.gated; break;
+        case TriangulationStatus::kParallel: ++s.parallel; break;
+        case TriangulationStatus::kBehind: ++s.behind; break;
+        case TriangulationStatus::kNoRay: ++s.no_ray; break;
+      }
+      out.records.push_back(std::move(record));
+    }
+    if (!bundle_frame.bundles.empty()) out.bundles.push_back(std::move(bundle_frame));
+    s.mono += static_cast<int>(rays[f].size());
+    for (MonoRay& ray : rays[f]) out.rays.push_back(std::move(ray));
+  }
+  s.rms_residual_px = num_views > 0 ? std::sqrt(sum_sq / num_views) : 0;
+  if (!sigmas.empty()) {
+    std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
+    s.median_depth_sigma_mm = sigmas[sigmas.size() / 2];
+  }
+  return out;
+}
+
+void WriteRaysCsv(const std::filesystem::path& path, const std::vector<MonoRay>& rays) {
+  std::string text = "frame,marker,camera,ox,oy,oz,dx,dy,dz\n";
+  for (const MonoRay& ray : rays) {
+    const Vec3& o = ray.origin_in_helmet;
+    const Vec3& d = ray.direction_in_helmet;
+    text += fmt::format("{},{},{},{},{},{},{},{},{}\n", ray.frame, ray.marker, ray.camera,
+                        Num(o.x()), Num(o.y()), Num(o.z()), Num(d.x()), Num(d.y()), Num(d.z()));
+  }
+  WriteFileAtomic(path, text);
+}
+
+std::vector<MonoRay> ReadRaysCsv(const std::filesystem::path& path) {
+  std::vector<MonoRay> rays;
+  ForEachCsvRow(path, {"frame", "marker", "camera", "ox", "oy", "oz", "dx", "dy", "dz"},
+                [&](const CsvRow& row) {
+                  MonoRay ray;
+                  ray.frame = row.Int(0);
+                  ray.marker = row.NonEmpty(1);
+                  ray.camera = row.NonEmpty(2);
+                  ray.origin_in_helmet = Vec3(row.Finite(3), row.Finite(4), row.Finite(5));
+                  ray.direction_in_helmet = Vec3(row.Finite(6), row.Finite(7), row.Finite(8));
+                  if (std::abs(ray.direction_in_helmet.norm() - 1) > 1e-6) {
+                    row.Fail("direction (dx,dy,dz) is not a unit vector (norm {})",
+                             ray.direction_in_helmet.norm());
+                  }
+                  rays.push_back(std::move(ray));
+                });
+  return rays;
+}
+
+void WriteTriangulationCsv(const std::filesystem::path& path, const HelmetRig& rig,
+                           const std::vector<TriangulationRecord>& records) {
+  std::string text = "frame,marker,status,views";
+  for (const HelmetCamera& hc : rig.cameras) text += ",residual_" + hc.name + "_px";
+  text += ",ray_angle_deg,depth_sigma_mm,x,y,z\n";
+  for (const TriangulationRecord& r : records) {
+    text += fmt::format("{},{},{},{}", r.frame, r.marker, TriangulationStatusName(r.status),
+                        r.views);
+    for (size_t c = 0; c < rig.cameras.size(); ++c) {
+      const double e = c < r.residual_px.size() ? r.residual_px[c] : NAN;
+      text += std::isnan(e) ? std::string(",") : fmt::format(",{:.6f}", e);
+    }
+    text += fmt::format(",{:.4f},{:.6f},{},{},{}\n", r.ray_angle_deg, r.depth_sigma_mm,
+                        Num(r.p_in_helmet.x()), Num(r.p_in_helmet.y()), Num(r.p_in_helmet.z()));
+  }
+  WriteFileAtomic(path, text);
+}
+
+std::vector<Track2d> TracksFromDots(const std::vector<Dot2dTruth>& dots, bool centroid) {
+  std::vector<Track2d> tracks;
+  for (const Dot2dTruth& d : dots) {
+    if (centroid ? !d.has_centroid : !d.visible) continue;
+    Track2d t;
+    t.frame = d.frame;
+    t.camera = d.camera;
+    t.marker = d.marker;
+    t.pixel = centroid ? d.centroid : d.pixel;
+    t.score = 1;
+    tracks.push_back(std::move(t));
+  }
+  return tracks;
+}
+
+TriangulationAccuracy EvaluateTriangulation(const std::vector<BundleFrame>& bundles,
+                                            const std::vector<BundleFrame>& truth,
+                                            const std::vector<Dot2dTruth>& dots,
+                                            int num_cameras) {
+  TriangulationAccuracy a;
+  std::map<int, const BundleFrame*> truth_by_frame;
+  for (const BundleFrame& f : truth) truth_by_frame[f.frame] = &f;
+  std::map<int, const BundleFrame*> ours_by_frame;
+  for (const BundleFrame& f : bundles) ours_by_frame[f.frame] = &f;
+  std::vector<double> errors;
+  for (const BundleFrame& f : bundles) {
+    const auto it = truth_by_frame.find(f.frame);
+    if (it == truth_by_frame.end()) continue;
+    for (const auto& [marker, p] : f.bundles) {
+      const auto jt = it->second->bundles.find(marker);
+      if (jt == it->second->bundles.end()) continue;
+      errors.push_back((p - jt->second).norm());
+    }
+  }
+  a.compared = static_cast<int>(errors.size());
+  if (!errors.empty()) {
+    std::sort(errors.begin(), errors.end());
+    double sum_sq = 0;
+    for (double e : errors) sum_sq += e * e;
+    a.rms_mm = std::sqrt(sum_sq / errors.size());
+    a.median_mm = errors[errors.size() / 2];
+    a.p99_mm = errors[std::min(errors.size() - 1, static_cast<size_t>(0.99 * errors.size()))];
+    a.max_mm = errors.back();
+  }
+  std::map<std::pair<int, std::string>, int> seen;
+  for (const Dot2dTruth& d : dots) {
+    if (d.disc != DotDiscState::kHidden) ++seen[{d.frame, d.marker}];
+  }
+  for (const auto& [key, count] : seen) {
+    if (count < num_cameras) continue;
+    ++a.seen_both;
+    const auto it = ours_by_frame.find(key.first);
+    if (it != ours_by_frame.end() && it->second->bundles.count(key.second)) {
+      ++a.seen_both_triangulated;
+    }
+  }
+  return a;
+}
+
+}  // namespace hmc
