@@ -42,17 +42,32 @@ HMC_COMMAND(Calibrate, "", "calibrate",
   app->add_option("--import-kalibr", *import_kalibr,
                   "Kalibr camchain.yaml: its intrinsics (and T_cn_cnm1) replace the nominal's "
                   "before the solve");
+  auto truth = std::make_shared<std::string>();
+  app->add_option("--truth", *truth,
+                  "A true calibration.yaml (synthetic shots: calibration_true.yaml) to compare "
+                  "the result with, in the log and the report");
   app->add_option("--export-kalibr", *export_kalibr, "Also write the result as a Kalibr camchain");
   return [=] {
     binding->Apply();
     RequireValid(*options, "calibrate");
     StageTimer timer("calibrate");
+    const std::filesystem::path out_path(*out);
+    const std::filesystem::path out_dir =
+        out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
+    EnsureDirectory(out_dir);
+    const std::filesystem::path report_path(*report);
+    if (report_path.has_parent_path()) EnsureDirectory(report_path.parent_path());
     HelmetRig rig = ReadCalibration(*nominal);
     if (!import_kalibr->empty()) {
       rig = ApplyKalibr(rig, ReadKalibrCamchain(*import_kalibr), *import_kalibr);
       spdlog::info("calibrate: intrinsics from {}", *import_kalibr);
     }
-    const CalibrateOutput result = RunCalibrate(*shot, *nominal, rig, *options);
+    CalibrateOutput result = RunCalibrate(*shot, *nominal, rig, *options);
+    if (!truth->empty() && !result.summary.change.found) {
+      result.has_truth = true;
+      result.truth = CompareRigs(result.rig, ReadCalibration(*truth));
+      spdlog::info("calibrate: against {}: {}", *truth, result.truth.BriefReport());
+    }
     if (!report->empty()) WriteFileAtomic(*report, CalibrationReportJson(result));
     const CalibrateSummary& s = result.summary;
     if (s.change.found) {
@@ -80,10 +95,6 @@ HMC_COMMAND(Calibrate, "", "calibrate",
                    "{:.4f} deg",
                    t.id, seen, t.rms_px, t.max_px, t.moved_mm, t.turned_deg);
     }
-    const std::filesystem::path out_path(*out);
-    const std::filesystem::path out_dir =
-        out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-    EnsureDirectory(out_dir);
     WriteCalibration(out_path, result.rig);
     if (!export_kalibr->empty()) WriteKalibrCamchain(*export_kalibr, result.rig);
     WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml");

@@ -1,5 +1,8 @@
 #include "core/calibration.h"
 
+#include <cmath>
+
+#include <fmt/format.h>
 #include <opencv2/core/eigen.hpp>
 
 #include "core/error.h"
@@ -37,7 +40,13 @@ Rigid3 RigidFromCv(const cv::Mat& m, const std::filesystem::path& path,
   const double orthogonality =
       (out.linear() * out.linear().transpose() - Mat3::Identity()).norm();
   if (!(orthogonality < 1e-6) || !(out.linear().determinant() > 0)) {
-    ThrowInputError(path, 0, "{} is not a rigid transform", what);
+    ThrowInputError(path, 0,
+                    "{} is not a rigid transform: its 3 x 3 part is not a rotation "
+                    "(|R R^T - I| = {:.3g}, det {:.6g})",
+                    what, orthogonality, out.linear().determinant());
+  }
+  if ((e.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-9) {
+    ThrowInputError(path, 0, "{}: the last row must be 0 0 0 1", what);
   }
   return out;
 }
@@ -87,33 +96,57 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
   if (!cameras.isSeq() || cameras.size() == 0) {
     ThrowInputError(path, 0, "missing 'cameras' sequence");
   }
+  // Every key is checked by name, so an incomplete or inconsistent file is
+  // refused with the file and the key ("cameras[1].cam_from_helmet").
+  int index = 0;
   for (const cv::FileNode& node : cameras) {
+    const std::string where = fmt::format("cameras[{}]", index++);
+    auto require = [&](const cv::FileNode& n, const char* key) {
+      if (n[key].empty()) ThrowInputError(path, 0, "missing key '{}.{}'", where, key);
+      return n[key];
+    };
     HelmetCamera c;
-    node["name"] >> c.name;
+    require(node, "name") >> c.name;
+    if (c.name.empty()) ThrowInputError(path, 0, "'{}.name' is empty", where);
     cv::Mat K, D, cam_from_helmet;
-    node["K"] >> K;
-    node["D"] >> D;
-    node["cam_from_helmet"] >> cam_from_helmet;
-    const int width = static_cast<int>(node["image_width"]);
-    const int height = static_cast<int>(node["image_height"]);
-    if (K.empty() || D.empty() || width <= 0 || height <= 0) {
-      ThrowInputError(path, 0, "camera '{}' needs K, D, image_width, image_height",
-                      c.name);
+    require(node, "K") >> K;
+    require(node, "D") >> D;
+    require(node, "cam_from_helmet") >> cam_from_helmet;
+    const cv::FileNode w = require(node, "image_width"), h = require(node, "image_height");
+    if (!w.isInt() || !h.isInt() || static_cast<int>(w) <= 0 || static_cast<int>(h) <= 0) {
+      ThrowInputError(path, 0, "'{}.image_width' and '.image_height' must be positive integers",
+                      where);
     }
-    c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(width, height));
-    c.cam_from_helmet =
-        RigidFromCv(cam_from_helmet, path, "camera '" + c.name + "' cam_from_helmet");
+    try {
+      c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(static_cast<int>(w), static_cast<int>(h)));
+    } catch (const InputError& e) {
+      ThrowInputError(path, 0, "'{}.K' / '{}.D': {}", where, where, e.what());
+    }
+    if (!(c.camera.fx > 0 && c.camera.fy > 0) || !std::isfinite(c.camera.cx) ||
+        !std::isfinite(c.camera.cy)) {
+      ThrowInputError(path, 0, "'{}.K': focal lengths must be positive and finite", where);
+    }
+    c.cam_from_helmet = RigidFromCv(cam_from_helmet, path, "'" + where + ".cam_from_helmet'");
     rig.cameras.push_back(c);
   }
-  fs["tag_family"] >> rig.tag_family;
-  for (const cv::FileNode& node : fs["tags"]) {
+  const cv::FileNode tags = fs["tags"];
+  if (!tags.empty()) {
+    if (fs["tag_family"].empty()) ThrowInputError(path, 0, "missing key 'tag_family'");
+    fs["tag_family"] >> rig.tag_family;
+  }
+  index = 0;
+  for (const cv::FileNode& node : tags) {
+    const std::string where = fmt::format("tags[{}]", index++);
+    for (const char* key : {"id", "size", "helmet_from_tag"}) {
+      if (node[key].empty()) ThrowInputError(path, 0, "missing key '{}.{}'", where, key);
+    }
     HelmetTag t;
     t.id = static_cast<int>(node["id"]);
     t.size = static_cast<double>(node["size"]);
     cv::Mat pose;
     node["helmet_from_tag"] >> pose;
-    if (!(t.size > 0)) ThrowInputError(path, 0, "tag {} needs a positive size", t.id);
-    t.helmet_from_tag = RigidFromCv(pose, path, "tag helmet_from_tag");
+    if (!(t.size > 0)) ThrowInputError(path, 0, "'{}.size' must be positive", where);
+    t.helmet_from_tag = RigidFromCv(pose, path, "'" + where + ".helmet_from_tag'");
     rig.tags.push_back(t);
   }
   return rig;

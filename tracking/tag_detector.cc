@@ -1,7 +1,10 @@
 #include "tracking/tag_detector.h"
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
+
+#include <opencv2/imgproc.hpp>
 
 #include <apriltag/apriltag.h>
 #include <apriltag/common/image_u8.h>
@@ -27,6 +30,10 @@ void TagDetectorOptions::Register(OptionFields* fields) {
   fields->Add("quad_sigma", &quad_sigma, "Gaussian blur before the quad search (px; 0 = none)");
   fields->Add("min_margin", &min_margin, "smallest decision margin of a kept detection");
   fields->Add("max_hamming", &max_hamming, "most corrected bits of a kept detection");
+  fields->Add("rectify", &rectify,
+              "re-detect each tag in a virtual pinhole view of it, where its edges are straight");
+  fields->Add("coarse_decimate", &coarse_decimate,
+              "with rectify: decimation of the full-image search (1 = full resolution)");
   fields->SetGroup("");
 }
 
@@ -38,6 +45,10 @@ bool TagDetectorOptions::Check() const {
   }
   if (!(quad_sigma >= 0 && quad_sigma <= 10)) {
     spdlog::error("tag options: quad_sigma must be in [0, 10]");
+    ok = false;
+  }
+  if (!(coarse_decimate >= 1 && coarse_decimate <= 8)) {
+    spdlog::error("tag options: coarse_decimate must be in [1, 8]");
     ok = false;
   }
   if (!(min_margin >= 0) || max_hamming < 0 || max_hamming > 3) {
@@ -95,18 +106,20 @@ TagDetector::~TagDetector() {
   if (impl_->family) impl_->destroy(impl_->family);
 }
 
-std::vector<TagDetection> TagDetector::Detect(const cv::Mat& grey) const {
+namespace {
+
+std::vector<TagDetection> RunDetector(apriltag_detector_t* detector, const cv::Mat& grey,
+                                      const TagDetectorOptions& options) {
   HMC_CHECK(grey.type() == CV_8UC1);
   cv::Mat continuous = grey.isContinuous() ? grey : grey.clone();
   image_u8_t image{continuous.cols, continuous.rows, static_cast<int32_t>(continuous.step),
                    continuous.data};
-  zarray_t* detections = apriltag_detector_detect(impl_->detector, &image);
+  zarray_t* detections = apriltag_detector_detect(detector, &image);
   std::vector<TagDetection> out;
   for (int i = 0; i < zarray_size(detections); ++i) {
     apriltag_detection_t* det;
     zarray_get(detections, i, &det);
-    if (det->decision_margin < impl_->options.min_margin ||
-        det->hamming > impl_->options.max_hamming) {
+    if (det->decision_margin < options.min_margin || det->hamming > options.max_hamming) {
       continue;
     }
     TagDetection d;
@@ -120,6 +133,66 @@ std::vector<TagDetection> TagDetector::Detect(const cv::Mat& grey) const {
   std::sort(out.begin(), out.end(),
             [](const TagDetection& a, const TagDetection& b) { return a.id < b.id; });
   return out;
+}
+
+}  // namespace
+
+std::vector<TagDetection> TagDetector::DetectRectified(const cv::Mat& grey,
+                                                       const FisheyeCamera& camera) const {
+  if (!impl_->options.rectify) return Detect(grey);
+  impl_->detector->quad_decimate = static_cast<float>(impl_->options.coarse_decimate);
+  std::vector<TagDetection> coarse = RunDetector(impl_->detector, grey, impl_->options);
+  impl_->detector->quad_decimate = static_cast<float>(impl_->options.quad_decimate);
+  for (TagDetection& d : coarse) {
+    // The virtual pinhole camera: aimed at the tag's centre, focal length
+    // the fisheye's, big enough for the tag and a margin of 60 % of it.
+    Vec2 centre = Vec2::Zero();
+    for (const Vec2& c : d.corners) centre += c / 4;
+    double extent = 0;
+    for (const Vec2& c : d.corners) extent = std::max(extent, (c - centre).norm());
+    Vec3 axis;
+    if (!camera.Unproject(centre, &axis)) continue;
+    const Vec3 x_axis = Vec3::UnitY().cross(axis).normalized();
+    Mat3 cam_from_view;
+    cam_from_view << x_axis, axis.cross(x_axis), axis;
+    const double f = camera.fx;
+    const int size = 2 * static_cast<int>(std::ceil(1.6 * extent)) + 24;
+    const double half = (size - 1) / 2.0;
+    cv::Mat map_x(size, size, CV_32F), map_y(size, size, CV_32F);
+    bool inside = true;
+    for (int v = 0; v < size && inside; ++v) {
+      for (int u = 0; u < size; ++u) {
+        const Vec3 ray = cam_from_view * Vec3((u - half) / f, (v - half) / f, 1);
+        Vec2 pixel;
+        if (!camera.Project(ray, &pixel)) {
+          inside = false;
+          break;
+        }
+        map_x.at<float>(v, u) = static_cast<float>(pixel.x());
+        map_y.at<float>(v, u) = static_cast<float>(pixel.y());
+      }
+    }
+    if (!inside) continue;
+    cv::Mat view;
+    cv::remap(grey, view, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    for (const TagDetection& r : RunDetector(impl_->detector, view, impl_->options)) {
+      if (r.id != d.id) continue;
+      TagDetection back = r;
+      bool ok = true;
+      for (int k = 0; k < 4; ++k) {
+        const Vec3 ray =
+            cam_from_view * Vec3((r.corners[k].x() - half) / f, (r.corners[k].y() - half) / f, 1);
+        ok = ok && camera.Project(ray, &back.corners[k]);
+      }
+      if (ok) d = back;
+      break;
+    }
+  }
+  return coarse;
+}
+
+std::vector<TagDetection> TagDetector::Detect(const cv::Mat& grey) const {
+  return RunDetector(impl_->detector, grey, impl_->options);
 }
 
 }  // namespace hmc

@@ -25,8 +25,12 @@ void CalibrateOptions::Register(OptionFields* fields) {
   fields->Add("sample", &sample, "frames spread over the shot on which the tags are detected");
   fields->Add("refine", &refine,
               "extrinsics | intrinsics (also each camera's focal length and principal point)");
+  fields->Add("tag_layout", &tag_layout,
+              "fixed (the nominal tag poses are trusted: helmet space is theirs) | free (also "
+              "solve every tag's pose)");
   fields->Add("gauge", &gauge,
-              "tags (helmet space from the nominal tag layout) | cam0 (cam0 at its nominal pose)");
+              "with tag_layout free: tags (helmet space aligned with the nominal tag layout) | "
+              "cam0 (cam0 at its nominal pose)");
   fields->Add("huber_px", &huber_px, "Huber loss scale on a corner's residual (px)");
   fields->Add("knock_px", &knock_px,
               "a camera's tag corners moving by more than this between two parts of the shot: "
@@ -47,6 +51,9 @@ bool CalibrateOptions::Check() const {
   if (sample < 1 || sample > 100000) fail("sample must be in [1, 100000]");
   if (refine != "extrinsics" && refine != "intrinsics") {
     fail("refine must be extrinsics or intrinsics, got '" + refine + "'");
+  }
+  if (tag_layout != "fixed" && tag_layout != "free") {
+    fail("tag_layout must be fixed or free, got '" + tag_layout + "'");
   }
   if (gauge != "tags" && gauge != "cam0") fail("gauge must be tags or cam0, got '" + gauge + "'");
   if (!(huber_px > 0)) fail("huber_px must be > 0");
@@ -153,6 +160,7 @@ Solution Solve(const HelmetRig& nominal, const std::vector<TagObservation>& obs,
     s.focal[c] = {k.fx, k.cx, k.cy};
   }
   for (int t = 0; t < nt; ++t) s.tags[t].Set(nominal.tags[t].helmet_from_tag);
+  const bool fixed_tags = options.tag_layout == "fixed";
   ceres::Problem problem;
   std::vector<bool> tag_used(nt, false), cam_used(nc, false);
   for (const TagObservation& o : obs) {
@@ -172,14 +180,19 @@ Solution Solve(const HelmetRig& nominal, const std::vector<TagObservation>& obs,
   for (int c = 0; c < nc; ++c) {
     if (!cam_used[c]) continue;
     problem.SetManifold(s.cams[c].q, new ceres::EigenQuaternionManifold);
-    if (c == 0) {
+    if (c == 0 && !fixed_tags) {
       problem.SetParameterBlockConstant(s.cams[c].q);
       problem.SetParameterBlockConstant(s.cams[c].t);
     }
     if (!free_intrinsics) problem.SetParameterBlockConstant(s.focal[c].data());
   }
   for (int t = 0; t < nt; ++t) {
-    if (tag_used[t]) problem.SetManifold(s.tags[t].q, new ceres::EigenQuaternionManifold);
+    if (!tag_used[t]) continue;
+    problem.SetManifold(s.tags[t].q, new ceres::EigenQuaternionManifold);
+    if (fixed_tags) {
+      problem.SetParameterBlockConstant(s.tags[t].q);
+      problem.SetParameterBlockConstant(s.tags[t].t);
+    }
   }
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;
@@ -288,7 +301,7 @@ CalibrateOutput SolveRigFromTags(const HelmetRig& nominal,
   for (int t = 0; t < nt; ++t) {
     if (tag_seen[t]) rig.tags[t].helmet_from_tag = s.tags[t].Get();
   }
-  if (options.gauge == "tags") {
+  if (options.tag_layout == "free" && options.gauge == "tags") {
     // helmet_new_from_helmet_solved: aligns the solved corners with the nominal ones.
     std::vector<Vec3> solved, wanted;
     for (int t = 0; t < nt; ++t) {
@@ -455,7 +468,7 @@ std::vector<TagObservation> DetectRigTags(const TagDetector& detector, const Hel
                                           int frame, int camera, const cv::Mat& image) {
   std::vector<TagObservation> out;
   const cv::Mat grey = ToGrey8(image);
-  for (const TagDetection& d : detector.Detect(grey)) {
+  for (const TagDetection& d : detector.DetectRectified(grey, rig.cameras[camera].camera)) {
     for (size_t t = 0; t < rig.tags.size(); ++t) {
       if (rig.tags[t].id != d.id) continue;
       out.push_back({frame, camera, static_cast<int>(t), d.corners});
@@ -567,6 +580,35 @@ CalibrateOutput RunCalibrate(const std::filesystem::path& shot,
   return out;
 }
 
+std::string RigDifference::BriefReport() const {
+  std::string text = fmt::format("cam1_from_cam0 off by {:.4f} mm, {:.5f} deg", relative_mm,
+                                 relative_deg);
+  for (size_t c = 0; c < camera_mm.size(); ++c) {
+    text += fmt::format("; camera {} off by {:.4f} mm, {:.5f} deg, focal {:+.3f} px", c,
+                        camera_mm[c], camera_deg[c], focal_px[c]);
+  }
+  return text;
+}
+
+RigDifference CompareRigs(const HelmetRig& a, const HelmetRig& b) {
+  HMC_CHECK(a.cameras.size() == b.cameras.size());
+  RigDifference d;
+  for (size_t c = 0; c < a.cameras.size(); ++c) {
+    const Rigid3& pa = a.cameras[c].cam_from_helmet;
+    const Rigid3& pb = b.cameras[c].cam_from_helmet;
+    d.camera_mm.push_back((pa.inverse().translation() - pb.inverse().translation()).norm());
+    d.camera_deg.push_back(AngleDeg(pa.linear(), pb.linear()));
+    d.focal_px.push_back(a.cameras[c].camera.fx - b.cameras[c].camera.fx);
+  }
+  if (a.cameras.size() >= 2) {
+    const Rigid3 ra = a.cameras[1].cam_from_helmet * a.cameras[0].cam_from_helmet.inverse();
+    const Rigid3 rb = b.cameras[1].cam_from_helmet * b.cameras[0].cam_from_helmet.inverse();
+    d.relative_mm = (ra.translation() - rb.translation()).norm();
+    d.relative_deg = AngleDeg(ra.linear(), rb.linear());
+  }
+  return d;
+}
+
 std::string CalibrationReportJson(const CalibrateOutput& out) {
   using nlohmann::json;
   const CalibrateSummary& s = out.summary;
@@ -625,6 +667,13 @@ std::string CalibrationReportJson(const CalibrateOutput& out) {
     frames.push_back(row);
   }
   report["frames"] = frames;
+  if (out.has_truth) {
+    report["truth"] = {{"cam1_from_cam0_mm", out.truth.relative_mm},
+                       {"cam1_from_cam0_deg", out.truth.relative_deg},
+                       {"camera_mm", out.truth.camera_mm},
+                       {"camera_deg", out.truth.camera_deg},
+                       {"focal_px", out.truth.focal_px}};
+  }
   return report.dump(1) + "\n";
 }
 

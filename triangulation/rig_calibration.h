@@ -17,11 +17,17 @@
 // determines the focal length to max_focal_sigma_pct, else the report says
 // by how much it is undetermined and the extrinsics are solved alone.
 //
-// Gauge: the solve holds cam0 at its nominal pose; with gauge = tags the
-// result is then moved by the rigid transform that best aligns the solved
-// tag corners with the nominal ones (Umeyama, no scale), so helmet space is
-// the nominal tag layout's; with gauge = cam0 it stays at cam0's nominal
-// pose.
+// Gauge. With tag_layout = fixed (default) the nominal tag poses are
+// trusted (the helmet's tag layout, measured once) and held constant: they
+// define helmet space and only the cameras are solved. With tag_layout =
+// free the tags are solved too and the solve holds cam0 at its nominal
+// pose; with gauge = tags the result is then moved by the rigid transform
+// that best aligns the solved tag corners with the nominal ones (Umeyama, no
+// scale), with gauge = cam0 it stays at cam0's nominal pose. Measured on
+// synthetic footage (docs/calibration.md): free tags leave each camera's
+// pose 5x less accurate (0.1-0.15 mm, 0.03 deg against 0.02 mm, 0.005 deg),
+// because a 22 mm tag's orientation is poorly determined by its corners;
+// cam1_from_cam0 is as good either way.
 //
 // A mid-shot change of the rig (a camera knocked): per camera, the tag
 // corners over the sampled frames are split at the frame that best divides
@@ -46,7 +52,8 @@ struct CalibrateOptions {
   FootageOptions footage;          // cam0, cam1, frames, offset1 (top level)
   int sample = 30;                 // frames spread over the shot on which tags are detected
   std::string refine = "extrinsics";  // extrinsics | intrinsics (also focal length, principal point)
-  std::string gauge = "tags";      // tags (helmet space from the nominal tag layout) | cam0
+  std::string tag_layout = "fixed";  // fixed (nominal tag poses trusted) | free (tags solved too)
+  std::string gauge = "tags";      // with tag_layout free: tags (aligned with the nominal layout) | cam0
   double huber_px = 1;             // Huber loss scale on a corner's residual (px)
   double knock_px = 0.5;           // corners of a camera moving by more than this between two parts of the shot: the rig changed (px RMS)
   double max_focal_sigma_pct = 0.1;  // refine intrinsics only if the tags determine the focal length to this (%)
@@ -109,6 +116,16 @@ struct CalibrateSummary {
   std::string BriefReport() const;
 };
 
+// How far rig `a` is from rig `b` (e.g. the solve from the truth): per
+// camera the centre's distance (mm) and the rotation angle (deg), the same
+// for cam1_from_cam0 (camera 1 relative to camera 0), the focal lengths.
+struct RigDifference {
+  std::vector<double> camera_mm, camera_deg, focal_px;
+  double relative_mm = 0, relative_deg = 0;
+  std::string BriefReport() const;
+};
+RigDifference CompareRigs(const HelmetRig& a, const HelmetRig& b);
+
 struct CalibrateOutput {
   HelmetRig rig;                                 // the calibrated rig
   std::vector<CameraCalibrationReport> cameras;
@@ -116,6 +133,8 @@ struct CalibrateOutput {
   std::vector<int> frames;                       // sampled frames
   std::vector<std::vector<double>> frame_rms_px;  // per sampled frame, per camera (NaN: no tag)
   CalibrateSummary summary;
+  bool has_truth = false;   // set by the caller with a truth rig to compare
+  RigDifference truth;      // the calibrated rig vs that truth
 };
 
 // The solve on given observations (no footage). Throws InputError if no

@@ -1,0 +1,79 @@
+// calibration.yaml refusals: an incomplete or inconsistent file is refused
+// with the file and the key named (core/calibration.h).
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/calibration.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/temp_dir.h"
+
+namespace hmc {
+namespace {
+
+std::string ValidCalibration(const std::filesystem::path& dir) {
+  HelmetRig rig;
+  FisheyeCamera cam;
+  cam.width = 640;
+  cam.height = 512;
+  cam.fx = cam.fy = 350;
+  cam.cx = 320;
+  cam.cy = 256;
+  for (const char* name : {"cam0", "cam1"}) {
+    Rigid3 pose = Rigid3::Identity();
+    pose.translation() = Vec3(0, name[3] == '0' ? 20 : -40, -150);
+    rig.cameras.push_back({name, cam, pose});
+  }
+  rig.tags.push_back({3, 22, Rigid3::Identity()});
+  WriteCalibration(dir / "valid.yaml", rig);
+  return ReadFile(dir / "valid.yaml");
+}
+
+// Replaces the n-th occurrence (0-based) of `from` in `text`.
+std::string Replace(std::string text, const std::string& from, const std::string& to,
+                    int n = 0) {
+  size_t pos = text.find(from);
+  for (int i = 0; i < n && pos != std::string::npos; ++i) pos = text.find(from, pos + 1);
+  EXPECT_NE(pos, std::string::npos) << from;
+  if (pos != std::string::npos) text.replace(pos, from.size(), to);
+  return text;
+}
+
+void ExpectRefused(const std::filesystem::path& dir, const std::string& text,
+                   const std::string& key) {
+  const auto path = dir / "broken_calibration.yaml";
+  WriteFileAtomic(path, text);
+  try {
+    ReadCalibration(path);
+    ADD_FAILURE() << "accepted a calibration with a bad " << key;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("broken_calibration.yaml"), std::string::npos) << what;
+    EXPECT_NE(what.find(key), std::string::npos) << what;
+  }
+}
+
+TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ASSERT_EQ(ReadCalibration(dir.path() / "valid.yaml").cameras.size(), 2u);
+  ExpectRefused(dir.path(), Replace(valid, "image_width", "image_wide", 1),
+                "cameras[1].image_width");
+  ExpectRefused(dir.path(), Replace(valid, "cam_from_helmet:", "cam_to_helmet:", 0),
+                "cameras[0].cam_from_helmet");
+  ExpectRefused(dir.path(), Replace(valid, "name: cam1", "nom: cam1"), "cameras[1].name");
+  ExpectRefused(dir.path(), Replace(valid, "tag_family", "tag_familly"), "tag_family");
+  ExpectRefused(dir.path(), Replace(valid, "size: 22", "size: -1"), "tags[0].size");
+  // A scaled rotation (not a rigid transform) in cam1's pose: its first
+  // element 1. -> 1.1.
+  const size_t pose = valid.find("cam_from_helmet", valid.find("name: cam1"));
+  const size_t data = valid.find("data: [ 1.", pose);
+  ASSERT_NE(data, std::string::npos);
+  std::string scaled = valid;
+  scaled.replace(data, std::string("data: [ 1.").size(), "data: [ 1.1");
+  ExpectRefused(dir.path(), scaled, "cameras[1].cam_from_helmet");
+}
+
+}  // namespace
+}  // namespace hmc
