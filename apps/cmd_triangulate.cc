@@ -12,6 +12,7 @@
 // compares the bundles with SHOT/bundles_helmet.csv and counts the coverage
 // of SHOT/dots_2d.csv.
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -24,6 +25,8 @@
 #include "core/logging.h"
 #include "core/text.h"
 #include "core/tracks_2d.h"
+#include "core/actor.h"
+#include "triangulation/dot_offset.h"
 #include "triangulation/triangulate.h"
 
 namespace hmc {
@@ -46,7 +49,10 @@ nlohmann::json AccuracyJson(const TriangulationAccuracy& a) {
           {"rms_mm", a.rms_mm},         {"p99_mm", a.p99_mm},
           {"max_mm", a.max_mm},         {"seen_in_every_camera", a.seen_both},
           {"seen_and_triangulated", a.seen_both_triangulated},
-          {"coverage", a.coverage()}};
+          {"coverage", a.coverage()},
+          {"full_in_every_camera", a.full_both},
+          {"full_and_triangulated", a.full_both_triangulated},
+          {"full_coverage", a.full_coverage()}};
 }
 
 }  // namespace
@@ -62,6 +68,7 @@ HMC_COMMAND(Triangulate, "", "triangulate",
   auto rays = std::make_shared<std::string>();
   auto truth = std::make_shared<std::string>();
   auto dots = std::make_shared<std::string>("centroid");
+  auto actor_dir = std::make_shared<std::string>();
   app->add_option("--tracks", *tracks_path,
                   "tracks_2d.csv (or a synthetic shot's dots_2d.csv, see --dots)")
       ->required();
@@ -77,6 +84,9 @@ HMC_COMMAND(Triangulate, "", "triangulate",
   app->add_option("--dots", *dots,
                   "with a dots_2d.csv as --tracks: centroid (cx,cy of full dots) | exact (x,y)")
       ->check(CLI::IsMember({"centroid", "exact"}));
+  app->add_option("--actor", *actor_dir,
+                  "Actor package: correct each bundle for its painted dot's rim depth, from the "
+                  "neutral's curvature at the marker (dot_radius; docs/calibration.md)");
   return [=] {
     binding->Apply();
     RequireValid(*options, "triangulate");
@@ -90,7 +100,12 @@ HMC_COMMAND(Triangulate, "", "triangulate",
     const std::vector<Track2d> tracks =
         from_dots ? TracksFromDots(ReadDots2dCsv(*tracks_path), *dots == "centroid")
                   : ReadTracks2dCsv(*tracks_path);
-    const TriangulateOutput result = RunTriangulate({&rig, &tracks, *tracks_path}, *options);
+    std::map<std::string, Vec3> offsets;
+    if (!actor_dir->empty()) {
+      offsets = DotRimOffsets(LoadActor(*actor_dir), options->dot_radius, options->dot_fit_radius);
+    }
+    const TriangulateOutput result = RunTriangulate(
+        {&rig, &tracks, *tracks_path, actor_dir->empty() ? nullptr : &offsets}, *options);
     WriteBundlesCsv(out_path, result.bundles);
     WriteRaysCsv(rays->empty() ? out_dir / "rays.csv" : std::filesystem::path(*rays),
                  result.rays);
@@ -111,6 +126,7 @@ HMC_COMMAND(Triangulate, "", "triangulate",
         {"stage", "triangulate"},
         {"tracks", *tracks_path},
         {"input", from_dots ? "dots_2d " + *dots : "tracks_2d"},
+        {"dot_offset_correction", !actor_dir->empty()},
         {"calibration", *calibration},
         {"frames", s.frames},
         {"candidates", s.candidates},

@@ -28,6 +28,10 @@ void TriangulateOptions::Register(OptionFields* fields) {
               "views whose rays meet at a smaller angle are not triangulated (deg)");
   fields->Add("max_iterations", &max_iterations, "Gauss-Newton iterations of the refinement");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  fields->Add("dot_radius", &dot_radius,
+              "painted dot radius (mm), for the rim-depth correction with --actor");
+  fields->Add("dot_fit_radius", &dot_fit_radius,
+              "neutral vertices within this of a marker fit the skin's curvature (mm)");
 }
 
 bool TriangulateOptions::Check() const {
@@ -43,6 +47,8 @@ bool TriangulateOptions::Check() const {
   }
   if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations must be in [1, 1000]");
   if (threads < 0) fail("threads must be >= 0");
+  if (!(dot_radius >= 0 && dot_radius < 20)) fail("dot_radius must be in [0, 20) mm");
+  if (!(dot_fit_radius > 0 && dot_fit_radius < 50)) fail("dot_fit_radius must be in (0, 50) mm");
   return ok;
 }
 
@@ -69,9 +75,10 @@ std::string TriangulateSummary::BriefReport() const {
 std::string TriangulationAccuracy::BriefReport() const {
   return fmt::format(
       "bundle error over {} marker-frames: median {:.4f} mm, RMS {:.4f} mm, p99 {:.4f} mm, max "
-      "{:.4f} mm; {} of {} marker-frames seen in every camera triangulated ({:.2f} %)",
+      "{:.4f} mm; {} of {} marker-frames seen (full or partial) in every camera triangulated "
+      "({:.2f} %), {} of {} full in every camera ({:.2f} %)",
       compared, median_mm, rms_mm, p99_mm, max_mm, seen_both_triangulated, seen_both,
-      100 * coverage());
+      100 * coverage(), full_both_triangulated, full_both, 100 * full_coverage());
 }
 
 namespace {
@@ -267,6 +274,10 @@ TriangulateOutput RunTriangulate(const TriangulateInput& input,
       record.marker = obs.marker;
       record.residual_px.assign(rig.cameras.size(), std::numeric_limits<double>::quiet_NaN());
       Triangulate(rig, obs.views, options, &record);
+      if (input.dot_offsets) {
+        const auto it = input.dot_offsets->find(obs.marker);
+        if (it != input.dot_offsets->end()) record.p_in_helmet -= it->second;
+      }
       records[f].push_back(std::move(record));
     }
   }, 4);
@@ -406,17 +417,21 @@ TriangulationAccuracy EvaluateTriangulation(const std::vector<BundleFrame>& bund
     a.p99_mm = errors[std::min(errors.size() - 1, static_cast<size_t>(0.99 * errors.size()))];
     a.max_mm = errors.back();
   }
-  std::map<std::pair<int, std::string>, int> seen;
+  std::map<std::pair<int, std::string>, std::pair<int, int>> seen;  // (seen, full) cameras
   for (const Dot2dTruth& d : dots) {
-    if (d.disc != DotDiscState::kHidden) ++seen[{d.frame, d.marker}];
+    auto& counts = seen[{d.frame, d.marker}];
+    counts.first += d.disc != DotDiscState::kHidden;
+    counts.second += d.disc == DotDiscState::kFull;
   }
-  for (const auto& [key, count] : seen) {
-    if (count < num_cameras) continue;
-    ++a.seen_both;
+  for (const auto& [key, counts] : seen) {
+    if (counts.first < num_cameras) continue;
     const auto it = ours_by_frame.find(key.first);
-    if (it != ours_by_frame.end() && it->second->bundles.count(key.second)) {
-      ++a.seen_both_triangulated;
-    }
+    const bool triangulated = it != ours_by_frame.end() && it->second->bundles.count(key.second);
+    ++a.seen_both;
+    a.seen_both_triangulated += triangulated;
+    if (counts.second < num_cameras) continue;
+    ++a.full_both;
+    a.full_both_triangulated += triangulated;
   }
   return a;
 }

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,10 @@ struct TriangulateOptions {
   double min_ray_angle_deg = 1.0;  // views whose rays meet at a smaller angle are not triangulated (deg)
   int max_iterations = 20;        // Gauss-Newton iterations of the refinement
   int threads = 0;                // worker threads (0 = all cores)
+  // The painted dot's offset (triangulation/dot_offset.h), applied when the
+  // command is given the actor (--actor):
+  double dot_radius = 1.2;        // painted dot radius (mm)
+  double dot_fit_radius = 3;      // neutral vertices within this of the marker fit the skin's curvature (mm)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -83,6 +88,9 @@ struct TriangulateInput {
   const HelmetRig* rig = nullptr;
   const std::vector<Track2d>* tracks = nullptr;
   std::filesystem::path tracks_path;  // names the tracks in errors
+  // Optional (triangulation/dot_offset.h): per marker the painted dot's rim
+  // centre relative to the marker (mm); subtracted from each bundle.
+  const std::map<std::string, Vec3>* dot_offsets = nullptr;
 };
 
 struct TriangulateSummary {
@@ -141,8 +149,13 @@ struct TriangulationAccuracy {
   double max_mm = 0;
   int seen_both = 0;          // marker-frames full or partial in every camera (dots_2d)
   int seen_both_triangulated = 0;
+  int full_both = 0;          // of which `full` in every camera (the dots with cx,cy)
+  int full_both_triangulated = 0;
   double coverage() const {
     return seen_both > 0 ? static_cast<double>(seen_both_triangulated) / seen_both : 0;
+  }
+  double full_coverage() const {
+    return full_both > 0 ? static_cast<double>(full_both_triangulated) / full_both : 0;
   }
   std::string BriefReport() const;
 };
