@@ -5,7 +5,7 @@
 // calibration for this shot from the AprilTags on the helmet
 // (triangulation/rig_calibration.h; method: docs/calibration.md). Writes
 // CAL.yaml (same format as the nominal, atomically), options_used.yaml
-// beside it, the report (FILE.json) and, with --export-kalibr, a Kalibr
+// and, last, summary.json (the report) beside it, the report (FILE.json) and, with --export-kalibr, a Kalibr
 // camchain. Refuses (exit 2, nothing but the report written) when a camera
 // moved during the shot: choose one side with --frames.
 #include <filesystem>
@@ -98,6 +98,7 @@ HMC_COMMAND(Calibrate, "", "calibrate",
     WriteCalibration(out_path, result.rig);
     if (!export_kalibr->empty()) WriteKalibrCamchain(*export_kalibr, result.rig);
     WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml");
+    WriteFileAtomic(out_dir / "summary.json", CalibrationReportJson(result));  // last
     spdlog::info("calibrate: {} -> {}", s.BriefReport(), *out);
     return 0;
   };
