@@ -232,7 +232,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   const PerformanceOptions& perf = options.performance;
   const HelmetRig rig = MakeShotRig(model, options.rig);
   FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig,
-                                 options.render, static_cast<uint64_t>(perf.seed));
+                           options.render, static_cast<uint64_t>(perf.seed));
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
   const int num_cameras = renderer.NumCameras();

@@ -57,18 +57,19 @@ void ExpectRigNear(const HelmetRig& a, const HelmetRig& b, double mm, double deg
 }
 
 TEST_F(CalibrateTest, KnockIsFoundAndEachSideRecovered) {
-  const int knock = 4;
+  const int knock = 5;
   const fs::path shot = dir_ / "shot";
   const CliResult synth = RunHmc(
-      fmt::format("synth shot --actor '{}' --out '{}' --frames 6 --seed 3 --contact_frames 0 "
+      fmt::format("synth shot --actor '{}' --out '{}' --frames 8 --seed 3 --contact_frames 0 "
                   "--nominal_mm 2 --nominal_deg 1 --knock_frame {} --knock_mm 1 --knock_deg 0.3",
                   (dir_ / "actor").string(), shot.string(), knock),
       dir_);
   ASSERT_EQ(synth.exit_code, 0) << synth.err;
   const std::string base =
-      fmt::format("calibrate --shot '{}' --calibration '{}' --sample 3", shot.string(),
+      fmt::format("calibrate --shot '{}' --calibration '{}' --sample 4", shot.string(),
                   (shot / "calibration.yaml").string());
-  // Samples 2, 4, 6: the knock lies between 2 and 4 and is pinned to 4.
+  // Samples 2, 4, 6, 8: the knock lies between 4 and 6 and is pinned to 5
+  // by reading frames 2-8.
   const CliResult refused = RunHmc(
       base + fmt::format(" --out '{}' --report '{}'", (dir_ / "all.yaml").string(),
                          (dir_ / "all.json").string()),

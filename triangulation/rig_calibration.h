@@ -33,6 +33,9 @@
 // corners over the sampled frames are split at the frame that best divides
 // them into two constant parts; a split whose parts differ by more than
 // knock_px (RMS over the corners) is a change of the rig at that frame.
+// Each part must hold two frames (corner medians per part), so one bad
+// detection cannot pass for a knock; a change within the first or last
+// sampled interval of the range is therefore not seen.
 #pragma once
 
 #include <array>
