@@ -11,6 +11,7 @@
 // tracker reports), --dots exact the x,y of every visible dot. --truth SHOT
 // compares the bundles with SHOT/bundles_helmet.csv and counts the coverage
 // of SHOT/dots_2d.csv.
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <memory>
