@@ -1,5 +1,6 @@
 // `hmc`: one binary, one subcommand per stage or tool (like `colmap <cmd>`).
 #include <cstdio>
+#include <string>
 
 #include <CLI/CLI.hpp>
 
@@ -22,7 +23,7 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbosity, "More detail (-v debug, -vv trace)");
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors");
   app.add_option("--threads", threads, "Worker threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 4096));
 
   CommandRun run;
   AddRegisteredCommands(&app, &run);
@@ -30,7 +31,27 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // A word where a command belongs that names none: say so, rather than
+    // CLI11's "A subcommand is required".
+    const CLI::App* level = &app;
+    std::string path = "hmc";
+    for (int i = 1; i < argc && level->get_require_subcommand_min() > 0; ++i) {
+      const std::string word = argv[i];
+      if (word.empty() || word[0] == '-') continue;
+      const CLI::App* next = nullptr;
+      for (const CLI::App* sub : level->get_subcommands({})) {
+        if (sub->get_name() == word) next = sub;
+      }
+      if (next == nullptr) {
+        std::fprintf(stderr, "hmc: error: unknown command '%s %s' (%s --help lists them)\n",
+                     path.c_str(), word.c_str(), path.c_str());
+        return 2;
+      }
+      level = next;
+      path += " " + word;
+    }
+    // Command-line errors exit 2, like input errors; --help exits 0.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   InitLogging(quiet ? -1 : verbosity);
   ThreadLimit thread_limit(threads);

@@ -4,6 +4,11 @@
 #include <fstream>
 #include <stdexcept>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
 #include <gtest/gtest.h>
 
 #include "core/error.h"
@@ -57,6 +62,55 @@ TEST(FileUtilTest, ErrorsNameTheFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos);
   }
+}
+
+
+// issue 24 item 8: what is not a regular file is refused with what it is,
+// never a raw filesystem error.
+TEST(FileUtilTest, InputsThatAreNotFilesSayWhatTheyAre) {
+  const fs::path dir = FreshDir("hmc_file_util_kinds");
+  fs::create_directories(dir / "folder");
+  ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
+  fs::create_symlink(dir / "loop_b", dir / "loop_a");
+  fs::create_symlink(dir / "loop_a", dir / "loop_b");
+  fs::create_symlink(dir / "nothing", dir / "dangling");
+  const auto message = [](const fs::path& p) {
+    try {
+      ReadFile(p);
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), p);
+      return std::string(e.what());
+    }
+    return std::string("read");
+  };
+  EXPECT_NE(message(dir / "folder").find("is a folder"), std::string::npos);
+  EXPECT_NE(message(dir / "fifo").find("FIFO"), std::string::npos);  // and does not block
+  EXPECT_NE(message(dir / "loop_a").find("loop of symbolic links"), std::string::npos);
+  EXPECT_NE(message(dir / "dangling").find("link to nothing"), std::string::npos);
+  EXPECT_NE(message("/dev/null").find("is a device"), std::string::npos);
+  EXPECT_EQ(DescribeUnreadable(dir / "folder" / ".." / "folder"), "is a folder, not a file");
+  WriteFileAtomic(dir / "real", "x");
+  fs::create_symlink(dir / "real", dir / "link");
+  EXPECT_EQ(ReadFile(dir / "link"), "x");
+  fs::remove_all(dir);
+}
+
+// issue 24 item 12: temporaries of a killed writer are removed by the next
+// write of the same output; those of other outputs and of live processes
+// are left alone.
+TEST(FileUtilTest, StaleTemporariesOfTheSameOutputAreRemoved) {
+  const fs::path dir = FreshDir("hmc_file_util_stale");
+  const long dead_pid = 2147483646;  // above any pid_max: no such process
+  const fs::path stale = dir / fmt::format(".mesh.pc2.tmp.{}.3", dead_pid);
+  const fs::path other = dir / fmt::format(".other.csv.tmp.{}.0", dead_pid);
+  const fs::path live = dir / fmt::format(".mesh.pc2.tmp.{}.0", getppid());
+  for (const fs::path& p : {stale, other, live}) std::ofstream(p) << "partial";
+  WriteFileAtomic(dir / "mesh.pc2", "whole");
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(other));
+  EXPECT_TRUE(fs::exists(live));
+  EXPECT_EQ(ReadFile(dir / "mesh.pc2"), "whole");
+  fs::remove_all(dir);
 }
 
 }  // namespace
