@@ -253,43 +253,22 @@ SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
                                 const BaselineFrameFn& solve,
                                 const std::string& name) {
   const int F = static_cast<int>(frames.size());
-  HMC_CHECK(jaw.empty() || static_cast<int>(jaw.size()) == F);
-  HMC_CHECK(frame_errors.empty() || static_cast<int>(frame_errors.size()) == F);
   SolveResult result;
-  result.frames.resize(F);
   result.meshes.resize(F);
+  SolveFrames(
+      frames, jaw, frame_errors, data.num_bundles, name,
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = solve(f, frames[f], pose, &result.meshes[f]);
+      },
+      &result);
   SolveSummary& s = result.summary;
   s.frames = F;
-  const MatX3d* last_good = nullptr;
-  Progress progress(name, F);
-  for (int f = 0; f < F; ++f) {
-    const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-    FrameSolve& fs = result.frames[f];
-    if (!frame_errors.empty() && !frame_errors[f].empty()) {
-      fs.frame = frames[f].frame;
-      fs.jaw = pose;
-      fs.bundles.resize(data.num_bundles);
-      fs.reason = frame_errors[f];
-    } else {
-      fs = solve(f, frames[f], pose, &result.meshes[f]);
-    }
-    if (fs.ok) {
-      last_good = &result.meshes[f];
-    } else {
-      ++s.bad_frames;
-      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-      if (last_good) {
-        result.meshes[f] = *last_good;
-      } else {
-        result.meshes[f] =
-            data.jaw_rig ? Skin(*data.jaw_rig, pose, neutral.V) : neutral.V;
-      }
-    }
+  for (const FrameSolve& fs : result.frames) {
     for (const BundleSolve& b : fs.bundles) {
       if (b.status == BundleSolve::Status::kInside) ++s.bundles_inside;
     }
-    progress.Advance();
   }
+  FillBadMeshes(neutral, data.jaw_rig ? &*data.jaw_rig : nullptr, &result);
   return result;
 }
 

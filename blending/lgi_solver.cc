@@ -53,14 +53,6 @@ bool SolveOptions::Check() const {
   return true;
 }
 
-std::string SolveSummary::BriefReport() const {
-  return fmt::format(
-      "{} frames ({} bad); bundles: {} inside, {} projected (max {:.3f} mm), "
-      "{} filled",
-      frames, bad_frames, bundles_inside, bundles_projected, max_projection,
-      bundles_filled);
-}
-
 LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
                      const ShapeIndex& index,
                      const NaturalNeighbourWeights& nn,
@@ -183,31 +175,6 @@ void LgiSolver::Assign(int k, const IndexCandidate& candidate, double cost,
     }
   }
   std::sort(out->weights.begin(), out->weights.end());
-}
-
-std::vector<char> BeginFrame(
-    const BundleFrame& bundles, const JawPose& jaw,
-    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
-    FrameSolve* frame) {
-  frame->frame = bundles.frame;
-  frame->jaw = jaw;
-  frame->bundles.assign(num_bundles, BundleSolve());
-  std::vector<char> observed(num_bundles, 0);
-  for (const auto& [name, p] : bundles.bundles) {
-    const auto it = marker_index.find(name);
-    if (it == marker_index.end()) {
-      ++frame->unknown_markers;
-      continue;
-    }
-    observed[it->second] = 1;
-    frame->bundles[it->second].observed = p;
-  }
-  return observed;
-}
-
-int BundlesNeeded(double min_fraction, int num_bundles) {
-  return std::max(
-      1, static_cast<int>(std::ceil(min_fraction * num_bundles - 1e-9)));
 }
 
 FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
@@ -620,72 +587,35 @@ void LgiSolver::SmoothWeights(int window, std::vector<FrameSolve>* frames) {
   });
 }
 
-void SolveSummary::Count(const FrameSolve& frame) {
-  for (const BundleSolve& b : frame.bundles) {
-    switch (b.status) {
-      case BundleSolve::Status::kInside: ++bundles_inside; break;
-      case BundleSolve::Status::kProjected:
-        ++bundles_projected;
-        max_projection = std::max(max_projection, b.distance);
-        break;
-      case BundleSolve::Status::kFilled: ++bundles_filled; break;
-      case BundleSolve::Status::kUnused: break;
-    }
-  }
-}
-
 SolveResult LgiSolver::SolveSequence(
     const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
     const std::vector<std::string>& frame_errors) const {
-  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
-  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
-  const int F = static_cast<int>(frames.size());
   SolveResult result;
-  result.frames.resize(F);
+  // Steps 1-4, in order: the temporal preference looks at the previous
+  // good frame's choices.
   const FrameSolve* previous = nullptr;
-  {
-    Progress progress("lgi choice", F);
-    for (int f = 0; f < F; ++f) {
-      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-      if (!frame_errors.empty() && !frame_errors[f].empty()) {
-        FrameSolve& bad = result.frames[f];
-        bad.frame = frames[f].frame;
-        bad.jaw = pose;
-        bad.bundles.resize(data_.num_bundles);
-        bad.reason = frame_errors[f];
-        progress.Advance();
-        continue;
-      }
-      result.frames[f] = SolveFrame(frames[f], pose, previous);
-      if (result.frames[f].ok) previous = &result.frames[f];
-      progress.Advance();
-    }
-  }
+  SolveFrames(
+      frames, jaw, frame_errors, data_.num_bundles, "lgi choice",
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = SolveFrame(frames[f], pose, previous);
+        if (out->ok) previous = out;
+      },
+      &result);
+  // Step 5, then step 6 on the good frames; the bad ones repeat the
+  // previous good mesh.
   SmoothWeights(options_.smooth_window, &result.frames);
-  Progress progress("lgi blend", F);
+  const int F = static_cast<int>(frames.size());
   result.meshes.resize(F);
-  const MatX3d* last_good = nullptr;
   SolveSummary& s = result.summary;
   s.frames = F;
+  Progress progress("lgi blend", F);
   for (int f = 0; f < F; ++f) {
     FrameSolve& fs = result.frames[f];
-    if (fs.ok) {
-      result.meshes[f] = Blend(&fs);
-      last_good = &result.meshes[f];
-    } else {
-      ++s.bad_frames;
-      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-      if (last_good) {
-        result.meshes[f] = *last_good;
-      } else {
-        result.meshes[f] = data_.jaw_rig
-                               ? Skin(*data_.jaw_rig, fs.jaw, neutral_.V)
-                               : neutral_.V;
-      }
-    }
+    if (fs.ok) result.meshes[f] = Blend(&fs);
     s.Count(fs);
     progress.Advance();
   }
+  FillBadMeshes(neutral_, data_.jaw_rig ? &*data_.jaw_rig : nullptr, &result);
   return result;
 }
 

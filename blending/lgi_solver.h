@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "blending/frame_solve.h"
 #include "blending/natural_neighbour.h"
 #include "core/frame_data.h"
 #include "core/options.h"
@@ -50,60 +51,6 @@ struct SolveOptions {
 
   void Register(OptionFields* fields);
   bool Check() const;
-};
-
-// One bundle in one frame.
-struct BundleSolve {
-  enum class Status { kInside, kProjected, kFilled, kUnused };
-  Status status = Status::kUnused;
-  Vec3 observed = Vec3::Zero();  // head space (when observed)
-  double distance = 0.0;  // how far the unskinned bundle was projected (mm)
-  int num_candidates = 0;
-  int simplex = -1;                  // chosen simplex of its index
-  std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
-  std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
-                                                // shape, neutral omitted
-  double cost = 0.0;         // neighbour criterion of the choice (mm^2)
-  double residual = 0.0;     // |output surface at s_k - observed| (mm)
-};
-
-struct FrameSolve {
-  int frame = 0;
-  bool ok = false;
-  std::string reason;  // why a bad frame was skipped
-  JawPose jaw;
-  std::vector<BundleSolve> bundles;  // K, in marker order
-  int unknown_markers = 0;           // names not in the actor (ignored)
-};
-
-// How every solver (lgi and the baselines) starts a frame: a FrameSolve
-// with one BundleSolve per marker, the observed position of each bundle
-// named in `bundles` (marker_index: name -> marker), unknown names counted.
-// Returns K flags: which markers were observed.
-std::vector<char> BeginFrame(
-    const BundleFrame& bundles, const JawPose& jaw,
-    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
-    FrameSolve* frame);
-
-// Fewest observed bundles a frame needs: ceil(min_fraction * K), at least 1.
-int BundlesNeeded(double min_fraction, int num_bundles);
-
-struct SolveSummary {
-  int frames = 0;
-  int bad_frames = 0;
-  int64_t bundles_inside = 0;
-  int64_t bundles_projected = 0;
-  int64_t bundles_filled = 0;
-  double max_projection = 0.0;  // mm
-  // Adds the frame's bundles to the counts by status.
-  void Count(const FrameSolve& frame);
-  std::string BriefReport() const;
-};
-
-struct SolveResult {
-  std::vector<MatX3d> meshes;  // one V x 3 mesh per input frame (mm)
-  std::vector<FrameSolve> frames;
-  SolveSummary summary;
 };
 
 class LgiSolver {

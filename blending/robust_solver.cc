@@ -492,30 +492,18 @@ SolveResult RobustSolver::SolveSequence(
   const int F = static_cast<int>(frames.size()), K = data_.num_bundles;
   report_ = RobustReport();
   SolveResult result;
-  result.frames.resize(F);
-  result.meshes.resize(F);
   std::vector<Work> work(F);
 
   // Step 1: lgi's choices, frame by frame (its temporal preference looks at
   // the previous frame) ...
-  {
-    Progress progress("robust: lgi choice", F);
-    const FrameSolve* previous = nullptr;
-    for (int f = 0; f < F; ++f) {
-      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-      FrameSolve& fs = result.frames[f];
-      progress.Advance();
-      if (!frame_errors.empty() && !frame_errors[f].empty()) {
-        fs.frame = frames[f].frame;
-        fs.jaw = pose;
-        fs.bundles.resize(K);
-        fs.reason = frame_errors[f];
-        continue;
-      }
-      fs = lgi_.SolveFrame(frames[f], pose, previous);
-      if (fs.ok) previous = &fs;
-    }
-  }
+  const FrameSolve* previous = nullptr;
+  SolveFrames(
+      frames, jaw, frame_errors, K, "robust: lgi choice",
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = lgi_.SolveFrame(frames[f], pose, previous);
+        if (out->ok) previous = out;
+      },
+      &result);
   // ... and the global fit, in runs of consecutive frames solved in
   // parallel, each frame warm-started from the one before it in its run.
   // Short runs keep the cores evenly loaded (24 frames in runs of 8 left one
@@ -554,6 +542,7 @@ SolveResult RobustSolver::SolveSequence(
     }
   });
   LgiSolver::SmoothWeights(solve_options_.smooth_window, &result.frames);
+  result.meshes.resize(F);
 
   std::vector<int> good;
   std::vector<const std::vector<char>*> good_observed;
@@ -815,7 +804,6 @@ SolveResult RobustSolver::SolveSequence(
   Progress progress("robust: blend", F);
   SolveSummary& s = result.summary;
   s.frames = F;
-  const MatX3d* last_good = nullptr;
   const auto* kernel =
       width_index >= 0 ? &vertex_kernel_.at(width_index) : nullptr;
   for (int begin = 0; begin < F;) {
@@ -834,7 +822,6 @@ SolveResult RobustSolver::SolveSequence(
       const Work& wk = work[f];
       if (wk.ok) {
         result.meshes[f] = std::move(blended[i++]);
-        last_good = &result.meshes[f];
         for (int k = 0; k < K; ++k) {
           BundleSolve& b = fs.bundles[k];
           if (wk.observed[k]) {
@@ -844,18 +831,13 @@ SolveResult RobustSolver::SolveSequence(
                              .norm();
           }
         }
-      } else {
-        ++s.bad_frames;
-        spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-        result.meshes[f] =
-            last_good ? *last_good
-                      : (rig ? Skin(*rig, fs.jaw, neutral_.V) : neutral_.V);
       }
       s.Count(fs);
       progress.Advance();
     }
     begin = end;
   }
+  FillBadMeshes(neutral_, rig, &result);
   spdlog::info(
       "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
       "mm for the shape prior), global ridge per shape {:.3g} (median; "
