@@ -78,7 +78,7 @@ bool SameInputs(const Memo& memo, const std::vector<BundleFrame>& frames,
 }  // namespace
 
 MethodSolvers::MethodSolvers(const Actor& actor, const MethodOptions& options,
-                             bool write_cache)
+                             IndexCacheWrite write_cache)
     : actor_(actor), options_(options), write_cache_(write_cache) {}
 
 MethodSolvers::~MethodSolvers() = default;

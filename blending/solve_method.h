@@ -59,10 +59,11 @@ void CheckSolveMethod(const std::string& name, const std::string& origin);
 
 class MethodSolvers {
  public:
-  // actor must outlive this object. write_cache: let the lgi model be
-  // written to the actor's index cache when it had to be built.
+  // actor must outlive this object. write_cache: where the lgi model goes
+  // when it had to be built (blending/solve_index_cache.h; never the
+  // package for a solve).
   MethodSolvers(const Actor& actor, const MethodOptions& options,
-                bool write_cache);
+                IndexCacheWrite write_cache);
   ~MethodSolvers();
 
   // Builds what `method` needs (once) without solving.
@@ -88,7 +89,7 @@ class MethodSolvers {
  private:
   const Actor& actor_;
   MethodOptions options_;
-  bool write_cache_ = false;
+  IndexCacheWrite write_cache_ = IndexCacheWrite::kNone;
   std::unique_ptr<LgiModel> lgi_model_;
   std::unique_ptr<ShapeData> data_;  // when no lgi model is needed
   std::unique_ptr<LgiSolver> lgi_;

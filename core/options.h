@@ -18,6 +18,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "core/error.h"
+
 namespace hmc {
 
 class OptionFields {
@@ -59,6 +61,16 @@ class OptionFields {
   std::string group_;
   std::vector<Field> fields_;
 };
+
+// Throws InputError if options.Check() fails (Check logs the reason): how a
+// stage's entry point refuses invalid options.
+template <typename Options>
+void RequireValid(const Options& options, const char* what) {
+  if (!options.Check()) {
+    throw InputError(std::string("invalid ") + what +
+                     " options (see the message above)");
+  }
+}
 
 // Writes fields.ToYaml() to `file` atomically.
 void WriteOptionsUsed(const OptionFields& fields,
