@@ -1,7 +1,7 @@
 // `hmc actor frames --actor DIR --out DIR
 //   --kind dataset|combos|performance|heldout|mixed [--frames N] [--seed N]
 //   [--noise-mm S]`: ground-truth test material from the synthetic actor's
-// generator (DESIGN.md section 6). heldout and mixed need an actor made with
+// generator (docs/synthetic.md). heldout and mixed need an actor made with
 // held-out units (`hmc actor synth --holdout N`). --noise-mm applies to every
 // kind. Writes to --out:
 //   truth.pc2        the true mesh sequence (frames numbered from 1, --fps)

@@ -13,7 +13,6 @@
 #include <fmt/format.h>
 
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -33,26 +32,10 @@ struct EvalCommand {
   std::string recon;
   std::string bundles;
   std::string out;
-  std::string frames;
+  std::vector<int> frames;
   bool json = false;
   EvalOptions options;
 };
-
-std::vector<int> ParseFrames(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      out.push_back(std::stoi(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw InputError("--frames: '" + item + "' is not a frame number");
-    }
-  }
-  return out;
-}
 
 void PrintTable(const EvalOutput& e, int vertices, double face_radius_mm) {
   const SequenceMetrics& metrics = e.metrics;
@@ -92,9 +75,7 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
   input.recon = cmd.recon;
   input.bundles = cmd.bundles;
   input.out = cmd.out;
-  if (!cmd.out.empty() && !cmd.frames.empty()) {
-    input.picture_frames = ParseFrames(cmd.frames);
-  }
+  if (!cmd.out.empty()) input.picture_frames = cmd.frames;
   const EvalOutput output = RunEval(input, cmd.options);
   if (!cmd.out.empty()) {
     WriteOptionsUsed(binding.fields(),
@@ -134,7 +115,8 @@ HMC_COMMAND(Eval, "", "eval",
                   "and pictures (PNG)");
   app->add_option("--frames", cmd->frames,
                   "Frames to picture, comma separated (default: four spread "
-                  "over the sequence)");
+                  "over the sequence)")
+      ->delimiter(',');
   app->add_flag("--json", cmd->json,
                 "Print one JSON object instead of a table");
   auto binding = BindOptions(app, &cmd->options);

@@ -2,7 +2,7 @@
 // [--method NAME] [--diagnostics FILE.json]`: meshes from bundles. The
 // default method `robust` (blending/robust_solver.h, docs/method.md) uses
 // local geometric indexing per bundle and frame, sewn with natural-neighbour
-// weights (DESIGN.md section 4), where the local data explain the markers
+// weights (docs/ARCHITECTURE.md, "Method steps"), where the local data explain the markers
 // beyond their noise, and a noise-aware global fit elsewhere; `lgi` is the
 // paper's method alone; the others (blendshape, blendshape-bounded, interp,
 // lgi-rbf: docs/baselines.md) take the same inputs and write the same
@@ -113,9 +113,13 @@ nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
     index = {{"from_cache", model->from_cache},
              {"build_seconds", model->build_seconds}};
   }
+  nlohmann::json report = nlohmann::json::object();
+  for (const auto& [name, value] : result.report.values) report[name] = value;
+  if (!result.report.brief.empty()) report["brief"] = result.report.brief;
   return {{"actor", actor.name},
           {"method", method},
           {"index", index},
+          {"report", report},
           {"summary",
            {{"frames", s.frames},
             {"bad_frames", s.bad_frames},

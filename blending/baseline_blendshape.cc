@@ -26,27 +26,16 @@ void BlendshapeOptions::Register(OptionFields* fields) {
   fields->Add("max_iterations", &max_iterations,
               "solver iterations per frame (Newton steps of the soft fit, "
               "active-set updates of the bounded one)");
-  fields->Add("min_bundle_fraction", &min_bundle_fraction,
-              "frames with fewer observed bundles (fraction of markers) are "
-              "flagged bad and skipped");
   fields->SetGroup("");
 }
 
 bool BlendshapeOptions::Check() const {
-  auto fail = [](const char* what) {
-    spdlog::error("blendshape options: {}", what);
-    return false;
-  };
-  if (!(penalty >= 0) || !std::isfinite(penalty)) {
-    return fail("penalty must be >= 0 and finite");
-  }
-  if (!(tikhonov > 0) || !std::isfinite(tikhonov)) {
-    return fail("tikhonov must be > 0 and finite");
-  }
-  if (max_iterations < 1) return fail("max_iterations must be >= 1");
-  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
-    return fail("min_bundle_fraction must be in [0, 1]");
-  }
+  CHECK_OPTION_GE(penalty, 0.0);
+  CHECK_OPTION(std::isfinite(penalty));
+  CHECK_OPTION_GT(tikhonov, 0.0);
+  CHECK_OPTION(std::isfinite(tikhonov));
+  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
   return true;
 }
 

@@ -66,10 +66,20 @@ struct SolveSummary {
   std::string BriefReport() const;
 };
 
+// A method's own report of one sequence solve, returned with the result (as
+// Ceres returns a Summary) so it lands in `hmc solve --diagnostics`: named
+// numbers in the method's order (units in the names) and one line.
+// Empty for the methods that have nothing beyond SolveSummary.
+struct MethodReport {
+  std::vector<std::pair<std::string, double>> values;
+  std::string brief;
+};
+
 struct SolveResult {
   std::vector<MatX3d> meshes;  // one V x 3 mesh per input frame (mm)
   std::vector<FrameSolve> frames;
   SolveSummary summary;
+  MethodReport report;
 };
 
 // A solve's input over a dense frame range, so the output stays aligned

@@ -218,6 +218,8 @@ SolveResult LgiRbfSolver::SolveFromLgi(SolveResult lgi_result) const {
   // Bad frames (lgi's, and those whose correction failed) repeat the
   // previous good mesh of this method.
   FillBadMeshes(neutral_, data_.jaw_rig ? &*data_.jaw_rig : nullptr, &result);
+  result.report.values = {{"gaussian_sigma_mm", sigma_mm()}};
+  result.report.brief = fmt::format("Gaussian sigma {:.3f} mm", sigma_mm());
   return result;
 }
 

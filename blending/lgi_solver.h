@@ -1,6 +1,6 @@
 // The per-frame solve of local geometric indexing (paper, "Local Geometric
 // Indexing", "Choosing Tetrahedra", "Jaw Articulation", "Temporal
-// Smoothing"; DESIGN.md section 4, steps 4-9):
+// Smoothing"; docs/ARCHITECTURE.md, "Method steps", 4-9):
 //   1. unskin each observed bundle with the frame's jaw pose;
 //   2. query its index: every simplex containing it, else the closest ones;
 //   3. choose among the candidates by the neighbour criterion (how close the
@@ -98,6 +98,42 @@ class LgiSolver {
   static constexpr int kNoRepresentative = -2;
   void Assign(int k, const IndexCandidate& candidate, double cost,
               BundleSolve* out, int representative = kNoRepresentative) const;
+
+  // The pieces of SolveFrame (steps 2-4), in order.
+  // Step 2: the index's candidates for bundle k at its unskinned position,
+  // plus the cloud points within the pruning thresholds.
+  IndexQuery GatherCandidates(int k, const Vec3& unskinned) const;
+  // Step 3's neighbour criterion for each candidate (mm^2, plus its squared
+  // projection distance), with the shape a point candidate stands for
+  // (kNoRepresentative: its own); returns the best cost.
+  double NeighbourCosts(int k, const IndexQuery& q,
+                        const std::vector<char>& observed,
+                        const std::vector<Vec3>& unskinned,
+                        std::vector<double>* costs,
+                        std::vector<int>* representatives) const;
+  // Step 3's choice within the slack: the candidate sharing the most shapes
+  // with the previous frame's choice (temporal preference), then the
+  // cheapest; *shared_shapes: per candidate, the shapes shared.
+  int TemporalChoice(int k, const IndexQuery& q,
+                     const std::vector<double>& cost, double best,
+                     const FrameSolve* previous,
+                     std::vector<int>* shared_shapes) const;
+  // Per bundle, the candidates whose cost ties with the best one.
+  struct TieGroups {
+    explicit TieGroups(int num_bundles)
+        : candidates(num_bundles), cost(num_bundles),
+          representative(num_bundles), shared(num_bundles),
+          chosen_representative(num_bundles, kNoRepresentative) {}
+    std::vector<std::vector<IndexCandidate>> candidates;
+    std::vector<std::vector<double>> cost;
+    std::vector<std::vector<int>> representative;
+    std::vector<std::vector<int>> shared;
+    std::vector<int> chosen_representative;  // of the first choice
+  };
+  // Step 3's ties: settled by the frame's consensus, then least motion.
+  void BreakTies(const TieGroups& tie, FrameSolve* frame) const;
+  // Step 4: missing bundles take their neighbours' weights.
+  void FillMissing(FrameSolve* frame) const;
 
   const TriMesh& neutral_;
   const ShapeData& data_;

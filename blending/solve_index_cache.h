@@ -1,4 +1,4 @@
-// Everything the solve precomputes once per actor (DESIGN.md section 4, step
+// Everything the solve precomputes once per actor (docs/ARCHITECTURE.md, "Method steps",
 // 3: "the index is cached on disk with a version header"): the unskinned
 // shapes, the natural-neighbour weights and the local geometric index, and
 // the versioned binary cache file in the actor package that holds the latter

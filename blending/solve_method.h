@@ -1,5 +1,5 @@
 // The one place that maps a solve method's name to a sequence solve
-// (DESIGN.md sections 4 and 5), so `hmc solve --method` and `hmc experiment`
+// (docs/ARCHITECTURE.md, "Method steps"; docs/baselines.md), so `hmc solve --method` and `hmc experiment`
 // run every method the same way: the same inputs (actor, bundle frames, jaw
 // poses, per-frame errors) and the same output (SolveResult: one mesh per
 // frame plus FrameSolve diagnostics; bad frames repeat the previous good
@@ -47,7 +47,7 @@ struct MethodOptions {
   bool Check() const;
 };
 
-// The valid method names, in the order of DESIGN.md.
+// The valid method names, in the order of docs/baselines.md.
 const std::vector<std::string>& SolveMethodNames();
 
 // "lgi, blendshape, ..." for help texts and messages.

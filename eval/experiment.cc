@@ -29,18 +29,6 @@
 namespace hmc {
 namespace {
 
-std::vector<std::string> SplitList(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    const size_t a = item.find_first_not_of(" \t");
-    const size_t b = item.find_last_not_of(" \t");
-    if (a != std::string::npos) out.push_back(item.substr(a, b - a + 1));
-  }
-  return out;
-}
-
 // Parses a number; false if `text` is not entirely one.
 bool ParseDouble(const std::string& text, double* value) {
   try {
@@ -81,52 +69,42 @@ void ExperimentOptions::Register(OptionFields* fields) {
 
 
 bool ExperimentOptions::Check() const {
-  bool ok = metrics.Check() && solve.Check();
-  auto fail = [&](const std::string& message) {
-    spdlog::error("experiment options: {}", message);
-    ok = false;
-  };
+  if (!metrics.Check() || !solve.Check() || !picture.Check()) return false;
+  CHECK_OPTION(!kinds.empty());
   const auto& valid_kinds = TruthFrameKinds();
-  if (SplitList(kinds).empty()) fail("kinds is empty");
-  for (const std::string& k : SplitList(kinds)) {
-    if (std::find(valid_kinds.begin(), valid_kinds.end(), k) ==
-        valid_kinds.end()) {
-      fail("unknown kind '" + k + "'");
-    }
+  for (const std::string& k : kinds) {
+    CHECK_OPTION(std::find(valid_kinds.begin(), valid_kinds.end(), k) !=
+                 valid_kinds.end());
   }
-  if (SplitList(noise_mm).empty()) fail("noise_mm is empty");
-  for (const std::string& n : SplitList(noise_mm)) {
-    double v = 0;
-    if (!ParseDouble(n, &v) || v < 0 || v > 50) {
-      fail("noise level '" + n + "' is not a number in [0, 50] mm");
-    }
-  }
-  if (SplitList(methods).empty()) fail("methods is empty");
-  for (const std::string& m : SplitList(methods)) {
-    const auto& names = SolveMethodNames();
+  CHECK_OPTION(!noise_mm.empty());
+  for (const double n : noise_mm) CHECK_OPTION_IN(n, 0.0, 50.0);
+  CHECK_OPTION(!methods.empty());
+  const auto& names = SolveMethodNames();
+  for (const std::string& m : methods) {
     if (std::find(names.begin(), names.end(), m) == names.end()) {
-      fail("unknown method '" + m + "'; valid: " + SolveMethodList());
+      spdlog::error("invalid option: unknown method '{}'; valid: {}", m,
+                    SolveMethodList());
+      return false;
     }
   }
-  if (default_frames < 1 || default_frames > 100000) {
-    fail("default_frames must be in [1, 100000]");
-  }
-  for (const std::string& entry : SplitList(frames)) {
+  CHECK_OPTION_IN(default_frames, 1, 100000);
+  for (const std::string& entry : frames) {
     const size_t colon = entry.find(':');
     double v = 0;
     if (colon == std::string::npos ||
         !ParseDouble(entry.substr(colon + 1), &v) || v < 1 || v > 100000 ||
         v != std::floor(v)) {
-      fail("frames entry '" + entry + "' is not kind:count");
+      spdlog::error("invalid option: frames entry '{}' is not kind:count",
+                    entry);
+      return false;
     }
   }
-  if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
-  return ok && picture.Check();
+  CHECK_OPTION(fps > 0 && fps <= 1000);
+  return true;
 }
 
-
 int ExperimentOptions::FramesOf(const std::string& kind) const {
-  for (const std::string& entry : SplitList(frames)) {
+  for (const std::string& entry : frames) {
     const size_t colon = entry.find(':');
     if (entry.substr(0, colon) == kind) {
       return std::stoi(entry.substr(colon + 1));
@@ -208,7 +186,7 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
       HeldOutUnits(model, package.options, package.synth_file);
 
   std::vector<std::string> kinds;
-  for (const std::string& kind : SplitList(o.kinds)) {
+  for (const std::string& kind : o.kinds) {
     if (KindNeedsHeldOutUnits(kind) && held.empty()) {
       spdlog::warn(
           "experiment: skipping kind {}: the actor holds no units out "
@@ -229,13 +207,8 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
     }
     kinds.push_back(kind);
   }
-  std::vector<double> noises;
-  for (const std::string& n : SplitList(o.noise_mm)) {
-    double v = 0;
-    ParseDouble(n, &v);
-    noises.push_back(v);
-  }
-  const std::vector<std::string> methods = SplitList(o.methods);
+  const std::vector<double>& noises = o.noise_mm;
+  const std::vector<std::string>& methods = o.methods;
 
   const std::filesystem::path& out = input.out;
   EnsureDirectory(out);

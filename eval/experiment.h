@@ -35,16 +35,19 @@
 namespace hmc {
 
 struct ExperimentOptions {
-  std::string kinds = "dataset,combos,performance,heldout,mixed";  // material
-                       // kinds (synth/truth_frames.h); heldout and mixed are
-                       // skipped for an actor without held-out units
-  std::string noise_mm = "0,0.5,1";  // marker noise levels: std per bundle
-                                   // coordinate (mm), comma separated
-  std::string methods =
-      "robust,lgi,blendshape,blendshape-bounded,interp,lgi-rbf";
+  std::vector<std::string> kinds = {"dataset", "combos", "performance",
+                                    "heldout", "mixed"};  // material kinds
+      // (synth/truth_frames.h); heldout and mixed are skipped for an actor
+      // without held-out units
+  std::vector<double> noise_mm = {0, 0.5, 1};  // marker noise levels: std
+                                               // per bundle coordinate (mm)
+  std::vector<std::string> methods = {"robust",     "lgi",
+                                      "blendshape", "blendshape-bounded",
+                                      "interp",     "lgi-rbf"};
   int default_frames = 30;  // frames of a kind not listed in `frames`
-  std::string frames = "combos:30,performance:60,heldout:30,mixed:30";
-                            // frames per kind (dataset: all shapes)
+  std::vector<std::string> frames = {"combos:30", "performance:60",
+                                     "heldout:30", "mixed:30"};
+      // frames per kind, kind:count (dataset: all shapes)
   double fps = 30.0;        // frame rate of the material (frames per second)
   bool write_meshes = false;  // write truth.pc2 and <method>.pc2 per material
   std::string picture_kind = "combos";  // material pictured (first noise level)

@@ -1,4 +1,4 @@
-// The synthetic actor (DESIGN.md section 6): a procedural, UV-parameterised
+// The synthetic actor (docs/synthetic.md): a procedural, UV-parameterised
 // face, a painted-marker layout, a jaw rig, FACS-like action units with
 // nonlinear fine detail, and a dataset of shapes built from them.
 // Deterministic by seed. How it is made: docs/synthetic.md.
