@@ -73,8 +73,11 @@ bool ExperimentOptions::Check() const {
   CHECK_OPTION(!kinds.empty());
   const auto& valid_kinds = TruthFrameKinds();
   for (const std::string& k : kinds) {
-    CHECK_OPTION(std::find(valid_kinds.begin(), valid_kinds.end(), k) !=
-                 valid_kinds.end());
+    if (std::find(valid_kinds.begin(), valid_kinds.end(), k) ==
+        valid_kinds.end()) {
+      spdlog::error("invalid option: unknown kind '{}' in kinds", k);
+      return false;
+    }
   }
   CHECK_OPTION(!noise_mm.empty());
   for (const double n : noise_mm) CHECK_OPTION_IN(n, 0.0, 50.0);
