@@ -1,7 +1,7 @@
 // `hmc actor frames --actor DIR --out DIR
 //   --kind dataset|combos|performance|heldout|mixed [--frames N] [--seed N]
 //   [--noise-mm S]`: ground-truth test material from the synthetic actor's
-// generator (DESIGN.md section 6). heldout and mixed need an actor made with
+// generator (docs/synthetic.md). heldout and mixed need an actor made with
 // held-out units (`hmc actor synth --holdout N`). --noise-mm applies to every
 // kind. Writes to --out:
 //   truth.pc2        the true mesh sequence (frames numbered from 1, --fps)
@@ -32,10 +32,6 @@
 
 namespace hmc {
 namespace {
-
-// Largest difference allowed between the regenerated and the loaded neutral:
-// WriteActor's 9 significant digits on coordinates of ~100 mm give ~1e-7 mm.
-constexpr double kNeutralToleranceMm = 1e-4;
 
 void WritePerFrameCsv(const std::filesystem::path& path, const std::string& header,
                       const TruthFrames& frames,
@@ -74,13 +70,11 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
     }
     RequireValid(*options, "actor frames");
     StageTimer timer("actor frames");
-    // synth.yaml first: a package without it fails before the (slow) load.
-    const SynthActorOptions synth = ReadSynthActorOptions(*actor_dir);
-    const Actor actor = LoadActor(*actor_dir);
-    const FaceModel model(synth);
-    CheckActorMatchesModel(actor, model, kNeutralToleranceMm);
-    const std::filesystem::path synth_file =
-        std::filesystem::path(*actor_dir) / kSynthOptionsFile;
+    const SynthPackage package = LoadSynthPackage(*actor_dir);
+    const SynthActorOptions& synth = package.options;
+    const Actor& actor = package.actor;
+    const FaceModel& model = *package.model;
+    const std::filesystem::path& synth_file = package.synth_file;
     const std::vector<int> held = HeldOutUnits(model, synth, synth_file);
     if (KindNeedsHeldOutUnits(options->kind) && held.empty()) {
       ThrowInputError(synth_file, 0,

@@ -1,5 +1,5 @@
 // `hmc actor synth --out DIR [--seed N] [--holdout N] [--config FILE]`:
-// writes the synthetic actor package (DESIGN.md section 6; how it is made:
+// writes the synthetic actor package (docs/synthetic.md; how it is made:
 // docs/synthetic.md). Besides the package files of WriteActor it writes
 //   synth.yaml               the generator options used (with the seed and
 //                            the held-out units resolved to their names), so

@@ -1,8 +1,9 @@
-// `hmc index --actor DIR [--force] [--json FILE]`: builds the local geometric
-// index of an actor (point clouds, tetrahedra, grids) and its natural-
-// neighbour weights, caches them in the package (lgi_index.bin, rebuilt when
-// the actor's files or these options change) and prints per-bundle
-// statistics and totals.
+// `hmc index --actor DIR [--force] [--into_package] [--json]`: builds the
+// local geometric index of an actor (point clouds, tetrahedra, grids) and
+// its natural-neighbour weights, caches them (lgi_index.bin, rebuilt when
+// the actor's files or these options change) in the user cache, or with
+// --into_package in the package itself (blending/solve_index_cache.h), and
+// prints per-bundle statistics and totals (--json: one JSON object instead).
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -22,14 +23,14 @@ namespace {
 struct IndexCommand {
   std::string actor_dir;
   bool force = false;
-  std::string json_file;
+  bool into_package = false;
+  bool json = false;
   LgiBuildOptions options;
 };
 
-void PrintStatistics(const Actor& actor, const LgiModel& model,
-                     const std::string& json_file) {
+void PrintStatistics(const Actor& actor, const LgiModel& model, bool json) {
   const ShapeIndex& index = model.index;
-  fmt::print("{:<24} {:>6} {:>6} {:>6} {:>6} {:>10} {:>9} {:>7} {:>6} {:>9} "
+  if (!json) fmt::print("{:<24} {:>6} {:>6} {:>6} {:>6} {:>10} {:>9} {:>7} {:>6} {:>9} "
              "{:>9}\n",
              "bundle", "points", "still", "tags", "merged", "tets_all",
              "tets_kept", "tris", "edges", "grid", "memory_kB");
@@ -41,7 +42,7 @@ void PrintStatistics(const Actor& actor, const LgiModel& model,
     const CloudStats& c = index.clouds[k];
     const std::string grid = fmt::format("{}x{}x{}", s.grid_cells[0],
                                          s.grid_cells[1], s.grid_cells[2]);
-    fmt::print("{:<24} {:>6} {:>6} {:>6} {:>6} {:>10} {:>9} {:>7} {:>6} {:>9} "
+    if (!json) fmt::print("{:<24} {:>6} {:>6} {:>6} {:>6} {:>10} {:>9} {:>7} {:>6} {:>9} "
                "{:>9.1f}\n",
                actor.markers[k].name, s.points, c.pruned_motion, c.pruned_tags,
                c.merged, s.tets_candidate, s.tets_kept, s.triangles_kept,
@@ -66,7 +67,7 @@ void PrintStatistics(const Actor& actor, const LgiModel& model,
                        {"grid_entries", s.grid_entries},
                        {"memory_bytes", s.memory_bytes}});
   }
-  fmt::print("total: {} bundles, {} points, tetrahedra {} -> {} kept ({:.2f}%), "
+  if (!json) fmt::print("total: {} bundles, {} points, tetrahedra {} -> {} kept ({:.2f}%), "
              "{} triangles, {} edges, {} grid cells, {:.1f} MB; {}\n",
              index.bundles.size(), points, all, kept,
              all > 0 ? 100.0 * kept / all : 0.0, tris, edges, cells,
@@ -74,8 +75,8 @@ void PrintStatistics(const Actor& actor, const LgiModel& model,
              model.from_cache ? "loaded from the cache"
                               : fmt::format("built in {:.2f} s",
                                             model.build_seconds));
-  if (!json_file.empty()) {
-    nlohmann::json json = {
+  if (json) {
+    const nlohmann::json report = {
         {"actor", actor.name},
         {"from_cache", model.from_cache},
         {"build_seconds", model.build_seconds},
@@ -89,22 +90,25 @@ void PrintStatistics(const Actor& actor, const LgiModel& model,
           {"grid_cells", cells},
           {"memory_bytes", memory}}},
         {"bundles", bundles}};
-    WriteFileAtomic(json_file, json.dump(2) + "\n");
+    fmt::print("{}\n", report.dump());
   }
 }
 
 }  // namespace
 
 HMC_COMMAND(Index, "", "index",
-            "Build the local geometric index of an actor and cache it in the "
-            "package (lgi_index.bin)") {
+            "Build the local geometric index of an actor and cache it "
+            "(user cache, or the package with --into_package)") {
   auto cmd = std::make_shared<IndexCommand>();
   app->add_option("--actor", cmd->actor_dir, "Actor package folder")
       ->required()
       ->check(CLI::ExistingDirectory);
   app->add_flag("--force", cmd->force, "Rebuild even if the cache is valid");
-  app->add_option("--json", cmd->json_file,
-                  "Also write the statistics to this JSON file");
+  app->add_flag("--into_package", cmd->into_package,
+                "Write the cache into the actor package (lgi_index.bin), "
+                "where every later solve reads it");
+  app->add_flag("--json", cmd->json,
+                "Print one JSON object instead of the table");
   auto binding = BindOptions(app, &cmd->options);
   return [cmd, binding] {
     binding->Apply();
@@ -112,14 +116,24 @@ HMC_COMMAND(Index, "", "index",
     const Actor actor = LoadActor(cmd->actor_dir);
     StageTimer timer("index");
     LgiModel model;
+    const IndexCacheWrite write = cmd->into_package
+                                      ? IndexCacheWrite::kPackage
+                                      : IndexCacheWrite::kUserCache;
     if (cmd->force) {
       model = BuildLgiModel(actor, cmd->options.index, cmd->options.nn);
-      WriteLgiCache(IndexCachePath(actor.dir), model);
+      const std::filesystem::path path =
+          write == IndexCacheWrite::kPackage
+              ? IndexCachePath(actor.dir)
+              : UserIndexCachePath(actor, model.index.options_hash);
+      if (!path.empty()) {
+        EnsureDirectory(path.parent_path());
+        WriteLgiCache(path, model);
+      }
     } else {
       model = LoadOrBuildLgiModel(actor, cmd->options.index, cmd->options.nn,
-                                  /*write_cache=*/true);
+                                  write);
     }
-    PrintStatistics(actor, model, cmd->json_file);
+    PrintStatistics(actor, model, cmd->json);
     return 0;
   };
 }

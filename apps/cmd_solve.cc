@@ -2,20 +2,21 @@
 // [--method NAME] [--diagnostics FILE.json]`: meshes from bundles. The
 // default method `robust` (blending/robust_solver.h, docs/method.md) uses
 // local geometric indexing per bundle and frame, sewn with natural-neighbour
-// weights (DESIGN.md section 4), where the local data explain the markers
+// weights (docs/ARCHITECTURE.md, "Method steps"), where the local data explain the markers
 // beyond their noise, and a noise-aware global fit elsewhere; `lgi` is the
 // paper's method alone; the others (blendshape, blendshape-bounded, interp,
 // lgi-rbf: docs/baselines.md) take the same inputs and write the same
 // outputs (blending/solve_method.h). OUT
 // by extension: .pc2, .mdd, .usda, or a folder of OBJ frames. The lgi index
-// is loaded from the actor's cache when valid, else built (and cached).
+// is loaded from the package's or the user's cache when valid, else built
+// and written to the user cache (blending/solve_index_cache.h): the solve
+// never writes into the actor package.
 // Writes options_used.yaml (with the method) next to OUT.
 //
 // Frames run from the first to the last frame number of bundles.csv; a frame
 // without rows, with too few bundles or without a jaw pose (when --jaw is
 // given) is flagged bad in the diagnostics and repeats the previous good
 // mesh (the jaw-skinned neutral before the first good frame).
-#include <map>
 #include <memory>
 #include <string>
 
@@ -112,9 +113,13 @@ nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
     index = {{"from_cache", model->from_cache},
              {"build_seconds", model->build_seconds}};
   }
+  nlohmann::json report = nlohmann::json::object();
+  for (const auto& [name, value] : result.report.values) report[name] = value;
+  if (!result.report.brief.empty()) report["brief"] = result.report.brief;
   return {{"actor", actor.name},
           {"method", method},
           {"index", index},
+          {"report", report},
           {"summary",
            {{"frames", s.frames},
             {"bad_frames", s.bad_frames},
@@ -137,44 +142,22 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   // Check the output path before the long work.
   const SequenceFormat format = SequenceFormatFromPath(cmd.out);
   (void)format;
-  std::map<int, JawPose> jaw_by_frame;
+  std::vector<JawFrame> jaw_rows;
   if (!cmd.jaw_file.empty()) {
-    for (const JawFrame& j : ReadJawCsv(cmd.jaw_file)) {
-      jaw_by_frame[j.frame] = j.pose;
-    }
+    jaw_rows = ReadJawCsv(cmd.jaw_file);
   } else if (actor.jaw_rig) {
     spdlog::warn("no --jaw given: solving with the zero jaw pose");
   }
-  // Dense frame range: gaps become bad frames, so the output stays aligned
-  // with frame numbers.
-  const int first = rows.front().frame, last = rows.back().frame;
-  std::vector<BundleFrame> frames(last - first + 1);
-  std::vector<JawPose> jaw(frames.size());
-  std::vector<std::string> errors(frames.size());
-  for (size_t i = 0; i < frames.size(); ++i) {
-    frames[i].frame = first + static_cast<int>(i);
-    errors[i] = "no bundles in this frame";
-  }
-  for (const BundleFrame& row : rows) {
-    frames[row.frame - first] = row;
-    errors[row.frame - first].clear();
-  }
-  if (!cmd.jaw_file.empty()) {
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const auto it = jaw_by_frame.find(frames[i].frame);
-      if (it != jaw_by_frame.end()) {
-        jaw[i] = it->second;
-      } else if (errors[i].empty()) {
-        errors[i] = "no jaw pose for this frame in " + cmd.jaw_file;
-      }
-    }
-  }
+  const DenseSequence input = MakeDenseSequence(
+      rows, cmd.jaw_file.empty() ? nullptr : &jaw_rows, cmd.jaw_file);
 
   StageTimer timer("solve " + cmd.options.method);
   MethodSolvers solvers(actor, cmd.options.methods,
-                        /*write_cache=*/!cmd.no_cache_write);
+                        cmd.no_cache_write ? IndexCacheWrite::kNone
+                                           : IndexCacheWrite::kUserCache);
   SolveResult result =
-      solvers.Solve(cmd.options.method, frames, jaw, errors);
+      solvers.Solve(cmd.options.method, input.frames, input.jaw,
+                    input.frame_errors);
 
   std::filesystem::path out_path(cmd.out);
   const std::filesystem::path parent =
@@ -183,7 +166,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   EnsureDirectory(parent);
   MeshSequence seq;
   seq.frames = std::move(result.meshes);
-  seq.start_frame = first;
+  seq.start_frame = input.first_frame;
   seq.fps = cmd.fps;
   seq.topology = actor.neutral;
   WriteMeshSequence(cmd.out, seq);
@@ -223,8 +206,10 @@ HMC_COMMAND(Solve, "", "solve",
                   "Per frame and bundle diagnostics (JSON)");
   app->add_option("--fps", cmd->fps, "Frame rate written to the output")
       ->check(CLI::PositiveNumber);
-  app->add_flag("--no-cache-write", cmd->no_cache_write,
-                "Do not write the index cache into the actor package");
+  app->add_flag("--no_cache_write,--no-cache-write", cmd->no_cache_write,
+                "Keep a built index in memory only (default: write it to "
+                "the user cache, $XDG_CACHE_HOME/hmc; the actor package is "
+                "never written). --no-cache-write: the old spelling");
   auto binding = BindOptions(app, &cmd->options);
   return [cmd, binding] { return Run(*cmd, *binding); };
 }

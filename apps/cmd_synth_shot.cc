@@ -18,12 +18,6 @@
 #include "synth/synth_actor.h"
 
 namespace hmc {
-namespace {
-
-// As in `hmc actor frames`: WriteActor's 9 significant digits on ~100 mm.
-constexpr double kNeutralToleranceMm = 1e-4;
-
-}  // namespace
 
 HMC_COMMAND(SynthShot, "synth", "shot",
             "Render synthetic stereo helmet-camera footage of a synthetic actor "
@@ -39,11 +33,9 @@ HMC_COMMAND(SynthShot, "synth", "shot",
     binding->Apply();
     RequireValid(*options, "synth shot");
     StageTimer timer("synth shot");
-    const SynthActorOptions synth = ReadSynthActorOptions(*actor_dir);
-    const Actor actor = LoadActor(*actor_dir);
-    const FaceModel model(synth);
-    CheckActorMatchesModel(actor, model, kNeutralToleranceMm);
-    const SynthShotSummary summary = RunSynthShot(model, actor, *options, *out);
+    const SynthPackage package = LoadSynthPackage(*actor_dir);
+    const SynthShotSummary summary =
+        RunSynthShot(*package.model, package.actor, *options, *out);
     spdlog::info("synth shot: {} -> {}", summary.BriefReport(), *out);
     return 0;
   };

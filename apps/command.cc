@@ -94,6 +94,12 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string con
                   if constexpr (std::is_same_v<T, double>) return "NUMBER";
                   if constexpr (std::is_same_v<T, int>) return "INT";
                   if constexpr (std::is_same_v<T, bool>) return "BOOL";
+                  if constexpr (std::is_same_v<T, std::vector<double>>) {
+                    return "NUMBER,...";
+                  }
+                  if constexpr (std::is_same_v<T, std::vector<std::string>>) {
+                    return "TEXT,...";
+                  }
                   return "TEXT";
                 },
                 field.pointer))

@@ -68,15 +68,6 @@ std::shared_ptr<OptionBinding> BindOptions(CLI::App* app, Options* options) {
   return std::make_shared<OptionBinding>(app, std::move(fields));
 }
 
-// Throws InputError if options.Check() fails (Check logs the reason).
-template <typename Options>
-void RequireValid(const Options& options, const char* what) {
-  if (!options.Check()) {
-    throw InputError(std::string("invalid ") + what +
-                     " options (see the message above)");
-  }
-}
-
 }  // namespace hmc
 
 #define HMC_COMMAND(id, group, name, help)                                 \

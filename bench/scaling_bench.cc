@@ -110,7 +110,7 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
     actor.markers = markers;
   }
   const MethodOptions options;
-  s->solvers = std::make_unique<MethodSolvers>(actor, options, false);
+  s->solvers = std::make_unique<MethodSolvers>(actor, options, IndexCacheWrite::kNone);
   // Held-out random combinations of the (unmodified) generator, bundles on
   // the chosen markers.
   const std::vector<DatasetEntry> plan = PlanDataset(model, so);

@@ -181,14 +181,14 @@ void BM_RobustSequence(benchmark::State& state) {
   const TruthFrames& t = state.range(0) ? base.noisy_combos : base.combos;
   std::vector<JawPose> jaw;
   for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  RobustReport report;
   for (auto _ : state) {
-    SolveResult r = robust.SolveSequence(t.bundles, jaw);
+    SolveResult r = robust.SolveSequence(t.bundles, jaw, {}, &report);
     benchmark::DoNotOptimize(r.meshes.data());
   }
   state.counters["s_per_frame"] = benchmark::Counter(
       static_cast<double>(state.iterations() * t.bundles.size()),
       benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  const RobustReport& report = robust.report();
   state.counters["local_fraction"] =
       static_cast<double>(report.bundles_local) /
       std::max<int64_t>(1, report.bundles_local + report.bundles_global);

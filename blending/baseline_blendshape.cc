@@ -26,27 +26,16 @@ void BlendshapeOptions::Register(OptionFields* fields) {
   fields->Add("max_iterations", &max_iterations,
               "solver iterations per frame (Newton steps of the soft fit, "
               "active-set updates of the bounded one)");
-  fields->Add("min_bundle_fraction", &min_bundle_fraction,
-              "frames with fewer observed bundles (fraction of markers) are "
-              "flagged bad and skipped");
   fields->SetGroup("");
 }
 
 bool BlendshapeOptions::Check() const {
-  auto fail = [](const char* what) {
-    spdlog::error("blendshape options: {}", what);
-    return false;
-  };
-  if (!(penalty >= 0) || !std::isfinite(penalty)) {
-    return fail("penalty must be >= 0 and finite");
-  }
-  if (!(tikhonov > 0) || !std::isfinite(tikhonov)) {
-    return fail("tikhonov must be > 0 and finite");
-  }
-  if (max_iterations < 1) return fail("max_iterations must be >= 1");
-  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
-    return fail("min_bundle_fraction must be in [0, 1]");
-  }
+  CHECK_OPTION_GE(penalty, 0.0);
+  CHECK_OPTION(std::isfinite(penalty));
+  CHECK_OPTION_GT(tikhonov, 0.0);
+  CHECK_OPTION(std::isfinite(tikhonov));
+  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
   return true;
 }
 
@@ -253,43 +242,22 @@ SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
                                 const BaselineFrameFn& solve,
                                 const std::string& name) {
   const int F = static_cast<int>(frames.size());
-  HMC_CHECK(jaw.empty() || static_cast<int>(jaw.size()) == F);
-  HMC_CHECK(frame_errors.empty() || static_cast<int>(frame_errors.size()) == F);
   SolveResult result;
-  result.frames.resize(F);
   result.meshes.resize(F);
+  SolveFrames(
+      frames, jaw, frame_errors, data.num_bundles, name,
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = solve(f, frames[f], pose, &result.meshes[f]);
+      },
+      &result);
   SolveSummary& s = result.summary;
   s.frames = F;
-  const MatX3d* last_good = nullptr;
-  Progress progress(name, F);
-  for (int f = 0; f < F; ++f) {
-    const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-    FrameSolve& fs = result.frames[f];
-    if (!frame_errors.empty() && !frame_errors[f].empty()) {
-      fs.frame = frames[f].frame;
-      fs.jaw = pose;
-      fs.bundles.resize(data.num_bundles);
-      fs.reason = frame_errors[f];
-    } else {
-      fs = solve(f, frames[f], pose, &result.meshes[f]);
-    }
-    if (fs.ok) {
-      last_good = &result.meshes[f];
-    } else {
-      ++s.bad_frames;
-      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-      if (last_good) {
-        result.meshes[f] = *last_good;
-      } else {
-        result.meshes[f] =
-            data.jaw_rig ? Skin(*data.jaw_rig, pose, neutral.V) : neutral.V;
-      }
-    }
+  for (const FrameSolve& fs : result.frames) {
     for (const BundleSolve& b : fs.bundles) {
       if (b.status == BundleSolve::Status::kInside) ++s.bundles_inside;
     }
-    progress.Advance();
   }
+  FillBadMeshes(neutral, data.jaw_rig ? &*data.jaw_rig : nullptr, &result);
   return result;
 }
 

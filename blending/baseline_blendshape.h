@@ -1,4 +1,4 @@
-// The `blendshape` and `blendshape-bounded` baselines (DESIGN.md section 5):
+// The `blendshape` and `blendshape-bounded` baselines (docs/baselines.md):
 // one set of weights over ALL dataset shapes, fitted so the bundles' surface
 // points land on the observed positions -- what a rig solver does. Same
 // inputs and outputs as the lgi solve (blending/lgi_solver.h): per frame,
@@ -46,7 +46,9 @@ struct BlendshapeOptions {
   int max_iterations = 100;  // solver iterations per frame (Newton steps;
                              // active-set updates when bounded)
   double min_bundle_fraction = 0.5;  // frames with fewer observed bundles
-                                     // (fraction of markers) are bad
+                                     // (fraction of markers) are bad; not
+                                     // registered: `hmc solve` sets it from
+                                     // solve.min_bundle_fraction
 
   void Register(OptionFields* fields);
   bool Check() const;

@@ -15,9 +15,6 @@ namespace hmc {
 
 void InterpOptions::Register(OptionFields* fields) {
   fields->SetGroup("interp");
-  fields->Add("min_bundle_fraction", &min_bundle_fraction,
-              "frames with fewer observed bundles (fraction of markers) are "
-              "flagged bad and skipped");
   fields->Add("merge_mm", &merge_mm,
               "bundles whose sites on the neutral are closer than this share "
               "one constraint (mm)");
@@ -25,14 +22,9 @@ void InterpOptions::Register(OptionFields* fields) {
 }
 
 bool InterpOptions::Check() const {
-  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
-    spdlog::error("interp options: min_bundle_fraction must be in [0, 1]");
-    return false;
-  }
-  if (!(merge_mm >= 0) || !std::isfinite(merge_mm)) {
-    spdlog::error("interp options: merge_mm must be >= 0 and finite");
-    return false;
-  }
+  CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
+  CHECK_OPTION_GE(merge_mm, 0.0);
+  CHECK_OPTION(std::isfinite(merge_mm));
   return true;
 }
 

@@ -1,4 +1,4 @@
-// The `interp` baseline (DESIGN.md section 5): the bundles' displacements
+// The `interp` baseline (docs/baselines.md): the bundles' displacements
 // interpolated smoothly over the neutral, with no dataset detail -- what Bhat
 // et al. 2013 ("High fidelity facial animation capture and retargeting with
 // contours", SCA) call the corrective shape.
@@ -45,7 +45,9 @@ namespace hmc {
 
 struct InterpOptions {
   double min_bundle_fraction = 0.5;  // frames with fewer observed bundles
-                                     // (fraction of markers) are bad
+                                     // (fraction of markers) are bad; not
+                                     // registered: `hmc solve` sets it from
+                                     // solve.min_bundle_fraction
   double merge_mm = 0.5;  // bundles whose sites on the neutral are closer
                           // than this share one constraint (their mean):
                           // exact interpolation of nearly coincident sites

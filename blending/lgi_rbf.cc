@@ -207,26 +207,19 @@ SolveResult LgiRbfSolver::SolveSequence(
 SolveResult LgiRbfSolver::SolveFromLgi(SolveResult lgi_result) const {
   SolveResult result = std::move(lgi_result);
   const int F = static_cast<int>(result.frames.size());
-  int last_good = -1;
   Progress progress("lgi-rbf blend", F);
   for (int f = 0; f < F; ++f) {
     FrameSolve& fs = result.frames[f];
-    if (fs.ok) {
-      MatX3d mesh;
-      if (Blend(&fs, &mesh)) {
-        result.meshes[f] = std::move(mesh);
-        last_good = f;
-      } else {
-        ++result.summary.bad_frames;
-        spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-      }
-    }
-    // A bad frame repeats the previous good mesh (the lgi result already
-    // holds the jaw-skinned neutral before the first good frame).
-    if (!fs.ok && last_good >= 0) result.meshes[f] = result.meshes[last_good];
+    MatX3d mesh;
+    if (fs.ok && Blend(&fs, &mesh)) result.meshes[f] = std::move(mesh);
     progress.Advance();
   }
   progress.Finish();
+  // Bad frames (lgi's, and those whose correction failed) repeat the
+  // previous good mesh of this method.
+  FillBadMeshes(neutral_, data_.jaw_rig ? &*data_.jaw_rig : nullptr, &result);
+  result.report.values = {{"gaussian_sigma_mm", sigma_mm()}};
+  result.report.brief = fmt::format("Gaussian sigma {:.3f} mm", sigma_mm());
   return result;
 }
 

@@ -1,4 +1,4 @@
-// The `lgi-rbf` alternative (DESIGN.md section 4 step 10; paper, Cong, Lan,
+// The `lgi-rbf` alternative (docs/ARCHITECTURE.md, "Method steps", 10; paper, Cong, Lan,
 // Fedkiw, "Local Geometric Indexing of High Resolution Data for Facial
 // Reconstruction from Sparse Markers", paragraph "RBF Interpolation"): the
 // per-bundle shape weights chosen by local geometric indexing are spread

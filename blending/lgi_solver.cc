@@ -30,35 +30,17 @@ void SolveOptions::Register(OptionFields* fields) {
               "(0 = off)");
   fields->Add("min_bundle_fraction", &min_bundle_fraction,
               "frames with fewer observed bundles (fraction of markers) are "
-              "flagged bad and skipped");
+              "flagged bad and skipped (every method)");
   fields->SetGroup("");
 }
 
 bool SolveOptions::Check() const {
-  auto fail = [](const char* what) {
-    spdlog::error("solve options: {}", what);
-    return false;
-  };
-  if (!(outside_slack_mm >= 0)) return fail("outside_slack_mm must be >= 0");
-  if (!(temporal_preference >= 0)) {
-    return fail("temporal_preference must be >= 0");
-  }
-  if (!(tie_mm2 >= 0)) {
-    return fail("tie_mm2 must be >= 0");
-  }
-  if (smooth_window < 0) return fail("smooth_window must be >= 0");
-  if (!(min_bundle_fraction >= 0 && min_bundle_fraction <= 1)) {
-    return fail("min_bundle_fraction must be in [0, 1]");
-  }
+  CHECK_OPTION_GE(outside_slack_mm, 0.0);
+  CHECK_OPTION_GE(temporal_preference, 0.0);
+  CHECK_OPTION_GE(tie_mm2, 0.0);
+  CHECK_OPTION_GE(smooth_window, 0);
+  CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
   return true;
-}
-
-std::string SolveSummary::BriefReport() const {
-  return fmt::format(
-      "{} frames ({} bad); bundles: {} inside, {} projected (max {:.3f} mm), "
-      "{} filled",
-      frames, bad_frames, bundles_inside, bundles_projected, max_projection,
-      bundles_filled);
 }
 
 LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
@@ -185,208 +167,159 @@ void LgiSolver::Assign(int k, const IndexCandidate& candidate, double cost,
   std::sort(out->weights.begin(), out->weights.end());
 }
 
-std::vector<char> BeginFrame(
-    const BundleFrame& bundles, const JawPose& jaw,
-    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
-    FrameSolve* frame) {
-  frame->frame = bundles.frame;
-  frame->jaw = jaw;
-  frame->bundles.assign(num_bundles, BundleSolve());
-  std::vector<char> observed(num_bundles, 0);
-  for (const auto& [name, p] : bundles.bundles) {
-    const auto it = marker_index.find(name);
-    if (it == marker_index.end()) {
-      ++frame->unknown_markers;
+IndexQuery LgiSolver::GatherCandidates(int k, const Vec3& unskinned) const {
+  const BundleIndex& b = index_.bundles[k];
+  IndexQuery q = b.Query(unskinned, options_.outside_slack_mm, index_options_);
+  // Cloud points within the pruning thresholds also compete: a shape
+  // merged into a point (or pruned into the neutral) may put the bundle up
+  // to that far from it, so the point is as valid an explanation as the
+  // simplices that contain the bundle.
+  const double snap =
+      std::max(index_options_.merge_mm, index_options_.region_tag_mm);
+  for (int i = 0; i < b.NumPoints(); ++i) {
+    const double d = (b.points().row(i).transpose() - unskinned).norm();
+    if (d > snap || d <= index_options_.on_data_mm) continue;
+    IndexCandidate cand;
+    cand.simplex = b.PointSimplex(i);
+    cand.weights = {1, 0, 0, 0};
+    cand.point = b.points().row(i).transpose();
+    cand.distance = d;
+    q.candidates.push_back(cand);
+  }
+  return q;
+}
+
+double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
+                                 const std::vector<char>& observed,
+                                 const std::vector<Vec3>& unskinned,
+                                 std::vector<double>* costs,
+                                 std::vector<int>* representatives) const {
+  const BundleIndex& b = index_.bundles[k];
+  // Neighbour criterion sum_j |x0(s_j) + sum_i w_i D_i(s_j) - p*_j|^2 as
+  // c + 2 w.g + w' G w over the candidate's corners (G precomputed; a
+  // missing neighbour's terms are removed).
+  const std::vector<int>& nbrs = neighbours_[k];
+  const int J = static_cast<int>(nbrs.size());
+  Eigen::VectorXd a = Eigen::VectorXd::Zero(3 * J);
+  bool all_observed = true;
+  for (int jj = 0; jj < J; ++jj) {
+    const int j = nbrs[jj];
+    if (!observed[j]) {
+      all_observed = false;
       continue;
     }
-    observed[it->second] = 1;
-    frame->bundles[it->second].observed = p;
+    a.segment<3>(3 * jj) = data_.site_neutral.row(j).transpose() - unskinned[j];
   }
-  return observed;
-}
-
-int BundlesNeeded(double min_fraction, int num_bundles) {
-  return std::max(
-      1, static_cast<int>(std::ceil(min_fraction * num_bundles - 1e-9)));
-}
-
-FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
-                                 const JawPose& jaw,
-                                 const FrameSolve* previous) const {
-  const int K = data_.num_bundles;
-  FrameSolve f;
-  const std::vector<char> observed =
-      BeginFrame(bundles, jaw, marker_index_, K, &f);
-  std::vector<Vec3> unskinned(K, Vec3::Zero());
-  int num_observed = 0;
-  for (int k = 0; k < K; ++k) {
-    if (!observed[k]) continue;
-    ++num_observed;
-    unskinned[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed);
-  }
-  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
-  if (num_observed < needed) {
-    f.ok = false;
-    f.reason = fmt::format("only {} of {} bundles observed (need {})",
-                           num_observed, K, needed);
-    return f;
-  }
-
-  std::vector<std::vector<IndexCandidate>> ties(K);
-  std::vector<std::vector<double>> tie_costs(K);
-  std::vector<std::vector<int>> tie_rep(K);
-  std::vector<int> chosen_rep(K, kNoRepresentative);
-  std::vector<std::vector<int>> tie_shared(K);
-  ParallelFor(0, K, [&](int64_t k) {
-    if (!observed[k]) return;
-    BundleSolve& out = f.bundles[k];
-    const BundleIndex& b = index_.bundles[k];
-    IndexQuery q =
-        b.Query(unskinned[k], options_.outside_slack_mm, index_options_);
-    // Cloud points within the pruning thresholds also compete: a shape
-    // merged into a point (or pruned into the neutral) may put the bundle up
-    // to that far from it, so the point is as valid an explanation as the
-    // simplices that contain the bundle.
-    const double snap =
-        std::max(index_options_.merge_mm, index_options_.region_tag_mm);
-    for (int i = 0; i < b.NumPoints(); ++i) {
-      const double d = (b.points().row(i).transpose() - unskinned[k]).norm();
-      if (d > snap || d <= index_options_.on_data_mm) continue;
-      IndexCandidate cand;
-      cand.simplex = b.PointSimplex(i);
-      cand.weights = {1, 0, 0, 0};
-      cand.point = b.points().row(i).transpose();
-      cand.distance = d;
-      q.candidates.push_back(cand);
-    }
-    out.num_candidates = static_cast<int>(q.candidates.size());
-    if (q.candidates.empty()) return;  // filled from the neighbours below
-    // Neighbour criterion sum_j |x0(s_j) + sum_i w_i D_i(s_j) - p*_j|^2 as
-    // c + 2 w.g + w' G w over the candidate's corners (G precomputed; a
-    // missing neighbour's terms are removed).
-    const std::vector<int>& nbrs = neighbours_[k];
-    const int J = static_cast<int>(nbrs.size());
-    Eigen::VectorXd a = Eigen::VectorXd::Zero(3 * J);
-    bool all_observed = true;
+  const Eigen::MatrixXd& disp = site_disp_[k];
+  Eigen::MatrixXd gram_missing;
+  if (!all_observed) {
+    gram_missing = gram_[k];
     for (int jj = 0; jj < J; ++jj) {
-      const int j = nbrs[jj];
-      if (!observed[j]) {
-        all_observed = false;
-        continue;
-      }
-      a.segment<3>(3 * jj) = data_.site_neutral.row(j).transpose() - unskinned[j];
+      if (observed[nbrs[jj]]) continue;
+      const auto block = disp.middleCols(3 * jj, 3);
+      gram_missing -= block * block.transpose();
     }
-    const Eigen::MatrixXd& disp = site_disp_[k];
-    Eigen::MatrixXd gram_missing;
-    if (!all_observed) {
-      gram_missing = gram_[k];
-      for (int jj = 0; jj < J; ++jj) {
-        if (observed[nbrs[jj]]) continue;
-        const auto block = disp.middleCols(3 * jj, 3);
-        gram_missing -= block * block.transpose();
+  }
+  const Eigen::MatrixXd& gram = all_observed ? gram_[k] : gram_missing;
+  const Eigen::VectorXd g = disp * a;
+  const double c0 = a.squaredNorm();
+  std::vector<double>& cost = *costs;
+  std::vector<int>& rep = *representatives;
+  cost.assign(q.candidates.size(), 0.0);
+  rep.assign(q.candidates.size(), kNoRepresentative);
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t ci = 0; ci < q.candidates.size(); ++ci) {
+    const IndexCandidate& cand = q.candidates[ci];
+    const CloudSimplex& s = b.simplices()[cand.simplex];
+    double e = c0;
+    for (int i = 0; i < s.size; ++i) {
+      const double wi = cand.weights[i];
+      if (wi == 0.0) continue;
+      e += 2 * wi * g[s.corner[i]];
+      for (int l = 0; l < s.size; ++l) {
+        e += wi * cand.weights[l] * gram(s.corner[i], s.corner[l]);
       }
     }
-    const Eigen::MatrixXd& gram = all_observed ? gram_[k] : gram_missing;
-    const Eigen::VectorXd g = disp * a;
-    const double c0 = a.squaredNorm();
-    std::vector<double> cost(q.candidates.size(), 0.0);
-    std::vector<int> rep(q.candidates.size(), kNoRepresentative);
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t ci = 0; ci < q.candidates.size(); ++ci) {
-      const IndexCandidate& cand = q.candidates[ci];
-      const CloudSimplex& s = b.simplices()[cand.simplex];
-      double e = c0;
-      for (int i = 0; i < s.size; ++i) {
-        const double wi = cand.weights[i];
-        if (wi == 0.0) continue;
-        e += 2 * wi * g[s.corner[i]];
-        for (int l = 0; l < s.size; ++l) {
-          e += wi * cand.weights[l] * gram(s.corner[i], s.corner[l]);
+    e = std::max(e, 0.0);
+    // On one cloud point: any shape the point stands for may be the one
+    // observed (verification of a merged or pruned shape depends on it).
+    int on_point = -1;
+    for (int i = 0; i < s.size; ++i) {
+      if (cand.weights[i] >= 1.0 - 1e-9) on_point = s.corner[i];
+    }
+    if (on_point >= 0) {
+      for (size_t ai = 0; ai < alt_point_[k].size(); ++ai) {
+        if (alt_point_[k][ai] != on_point) continue;
+        double ea = 0;
+        for (int jj = 0; jj < J; ++jj) {
+          if (!observed[nbrs[jj]]) continue;
+          ea += (a.segment<3>(3 * jj) +
+                 alt_disp_[k].block<1, 3>(ai, 3 * jj).transpose())
+                    .squaredNorm();
         }
-      }
-      e = std::max(e, 0.0);
-      // On one cloud point: any shape the point stands for may be the one
-      // observed (verification of a merged or pruned shape depends on it).
-      int on_point = -1;
-      for (int i = 0; i < s.size; ++i) {
-        if (cand.weights[i] >= 1.0 - 1e-9) on_point = s.corner[i];
-      }
-      if (on_point >= 0) {
-        for (size_t ai = 0; ai < alt_point_[k].size(); ++ai) {
-          if (alt_point_[k][ai] != on_point) continue;
-          double ea = 0;
-          for (int jj = 0; jj < J; ++jj) {
-            if (!observed[nbrs[jj]]) continue;
-            ea += (a.segment<3>(3 * jj) +
-                   alt_disp_[k].block<1, 3>(ai, 3 * jj).transpose())
-                      .squaredNorm();
-          }
-          if (ea < e - options_.tie_mm2) {
-            e = ea;
-            rep[ci] = alt_shape_[k][ai];
-          }
-        }
-      }
-      e += cand.distance * cand.distance;
-      cost[ci] = e;
-      best = std::min(best, e);
-    }
-    // The winding-number preference: among near-best candidates, the one
-    // sharing the most shapes with the previous frame's choice.
-    // It applies while the bundle is still on the previous frame's simplex
-    // (that simplex is a candidate now): across a discontinuity (a cut,
-    // unrelated frames) the frames are solved independently.
-    const std::vector<int>* prev_shapes = nullptr;
-    if (previous != nullptr && options_.temporal_preference > 0 &&
-        !previous->bundles[k].corner_shapes.empty()) {
-      const int prev_simplex = previous->bundles[k].simplex;
-      for (const IndexCandidate& cand : q.candidates) {
-        if (cand.simplex == prev_simplex) {
-          prev_shapes = &previous->bundles[k].corner_shapes;
-          break;
+        if (ea < e - options_.tie_mm2) {
+          e = ea;
+          rep[ci] = alt_shape_[k][ai];
         }
       }
     }
-    const double limit =
-        prev_shapes
-            ? best * (1 + options_.temporal_preference) + options_.tie_mm2
-            : best + options_.tie_mm2;
-    std::vector<int> shared(q.candidates.size(), 0);
-    int chosen = -1;
-    for (size_t c = 0; c < q.candidates.size(); ++c) {
-      if (cost[c] > limit) continue;
-      if (prev_shapes) {
-        const CloudSimplex& s = b.simplices()[q.candidates[c].simplex];
-        for (int i = 0; i < s.size; ++i) {
-          const int shape = b.point_shapes()[s.corner[i]];
-          shared[c] += std::count(prev_shapes->begin(), prev_shapes->end(),
-                                  shape) > 0;
-        }
-      }
-      // Candidates are sorted by simplex id, so ties keep the lowest id.
-      if (chosen < 0 || shared[c] > shared[chosen] ||
-          (shared[c] == shared[chosen] && cost[c] < cost[chosen])) {
-        chosen = static_cast<int>(c);
-      }
-    }
-    // The exact tie group (cost within tie_mm2 of the best): settled below,
-    // once every bundle has a first choice, if its blends differ.
-    for (size_t c = 0; c < q.candidates.size(); ++c) {
-      if (cost[c] <= best + options_.tie_mm2) {
-        ties[k].push_back(q.candidates[c]);
-        tie_rep[k].push_back(rep[c]);
-        tie_costs[k].push_back(cost[c]);
-        tie_shared[k].push_back(shared[c]);
-      }
-    }
-    out.status = q.inside ? BundleSolve::Status::kInside
-                          : BundleSolve::Status::kProjected;
-    out.distance = q.distance;
-    Assign(static_cast<int>(k), q.candidates[chosen], cost[chosen], &out,
-           rep[chosen]);
-    chosen_rep[k] = rep[chosen];
-  });
+    e += cand.distance * cand.distance;
+    cost[ci] = e;
+    best = std::min(best, e);
+  }
+  return best;
+}
 
+int LgiSolver::TemporalChoice(int k, const IndexQuery& q,
+                              const std::vector<double>& cost, double best,
+                              const FrameSolve* previous,
+                              std::vector<int>* shared_shapes) const {
+  const BundleIndex& b = index_.bundles[k];
+  // The winding-number preference: among near-best candidates, the one
+  // sharing the most shapes with the previous frame's choice.
+  // It applies while the bundle is still on the previous frame's simplex
+  // (that simplex is a candidate now): across a discontinuity (a cut,
+  // unrelated frames) the frames are solved independently.
+  const std::vector<int>* prev_shapes = nullptr;
+  if (previous != nullptr && options_.temporal_preference > 0 &&
+      !previous->bundles[k].corner_shapes.empty()) {
+    const int prev_simplex = previous->bundles[k].simplex;
+    for (const IndexCandidate& cand : q.candidates) {
+      if (cand.simplex == prev_simplex) {
+        prev_shapes = &previous->bundles[k].corner_shapes;
+        break;
+      }
+    }
+  }
+  const double limit =
+      prev_shapes
+          ? best * (1 + options_.temporal_preference) + options_.tie_mm2
+          : best + options_.tie_mm2;
+  std::vector<int>& shared = *shared_shapes;
+  shared.assign(q.candidates.size(), 0);
+  int chosen = -1;
+  for (size_t c = 0; c < q.candidates.size(); ++c) {
+    if (cost[c] > limit) continue;
+    if (prev_shapes) {
+      const CloudSimplex& s = b.simplices()[q.candidates[c].simplex];
+      for (int i = 0; i < s.size; ++i) {
+        const int shape = b.point_shapes()[s.corner[i]];
+        shared[c] += std::count(prev_shapes->begin(), prev_shapes->end(),
+                                shape) > 0;
+      }
+    }
+    // Candidates are sorted by simplex id, so ties keep the lowest id.
+    if (chosen < 0 || shared[c] > shared[chosen] ||
+        (shared[c] == shared[chosen] && cost[c] < cost[chosen])) {
+      chosen = static_cast<int>(c);
+    }
+  }
+  return chosen;
+}
+
+void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
+  const int K = data_.num_bundles;
+  FrameSolve& f = *frame;
   // Ties: a bundle whose position and neighbours cannot tell candidates
   // apart (a shape that moves only the skin between bundles leaves them all
   // where the neutral has them) takes the candidate whose points stand for
@@ -405,11 +338,11 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
   };
   std::vector<char> tied(K, 0);
   ParallelFor(0, K, [&](int64_t k) {
-    if (ties[k].size() < 2) return;
+    if (tie.candidates[k].size() < 2) return;
     BundleSolve first_blend, probe;
-    Assign(static_cast<int>(k), ties[k][0], 0.0, &first_blend, tie_rep[k][0]);
-    for (size_t t = 0; t < ties[k].size(); ++t) {
-      Assign(static_cast<int>(k), ties[k][t], 0.0, &probe, tie_rep[k][t]);
+    Assign(static_cast<int>(k), tie.candidates[k][0], 0.0, &first_blend, tie.representative[k][0]);
+    for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+      Assign(static_cast<int>(k), tie.candidates[k][t], 0.0, &probe, tie.representative[k][t]);
       if (!same_blend(probe.weights, first_blend.weights)) {
         tied[k] = 1;
         return;
@@ -423,8 +356,8 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
                     st != BundleSolve::Status::kProjected)) {
       continue;
     }
-    if (chosen_rep[k] != kNoRepresentative) {
-      if (chosen_rep[k] >= 0) consensus[chosen_rep[k] + 1] += 1.0;
+    if (tie.chosen_representative[k] != kNoRepresentative) {
+      if (tie.chosen_representative[k] >= 0) consensus[tie.chosen_representative[k] + 1] += 1.0;
       continue;
     }
     const BundleIndex& b = index_.bundles[k];
@@ -449,14 +382,14 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     const BundleIndex& b = index_.bundles[k];
     int best_t = -1;
     double best_score = 0, best_motion = 0;
-    for (size_t t = 0; t < ties[k].size(); ++t) {
-      const IndexCandidate& cand = ties[k][t];
+    for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+      const IndexCandidate& cand = tie.candidates[k][t];
       const CloudSimplex& s = b.simplices()[cand.simplex];
       double score = 0, motion = 0;
       for (int i = 0; i < s.size; ++i) {
         const double w = cand.weights[i];
         motion += w * point_motion_[k][s.corner[i]];
-        const int r = tie_rep[k][t];
+        const int r = tie.representative[k][t];
         if (r != kNoRepresentative) {
           // On one point, standing for shape r.
           if (r >= 0 && w > 0.5) score += consensus[r + 1];
@@ -472,7 +405,7 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
       }
       bool better = best_t < 0 || score > best_score + 1e-9;
       if (!better && score >= best_score - 1e-9) {
-        const int sh = tie_shared[k][t], best_sh = tie_shared[k][best_t];
+        const int sh = tie.shared[k][t], best_sh = tie.shared[k][best_t];
         better = sh > best_sh ||
                  (sh == best_sh && motion < best_motion - 1e-12);
       }
@@ -482,10 +415,14 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
         best_motion = motion;
       }
     }
-    Assign(static_cast<int>(k), ties[k][best_t], tie_costs[k][best_t],
-           &f.bundles[k], tie_rep[k][best_t]);
+    Assign(static_cast<int>(k), tie.candidates[k][best_t], tie.cost[k][best_t],
+           &f.bundles[k], tie.representative[k][best_t]);
   });
+}
 
+void LgiSolver::FillMissing(FrameSolve* frame) const {
+  const int K = data_.num_bundles;
+  FrameSolve& f = *frame;
   // Missing bundles: the neighbours' weights, averaged by inverse squared
   // distance between the sites on the neutral.
   std::vector<int> solved;
@@ -530,6 +467,62 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     out.status = BundleSolve::Status::kFilled;
     for (const auto& [shape, w] : acc) out.weights.emplace_back(shape, w / total);
   }
+}
+
+FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
+                                 const JawPose& jaw,
+                                 const FrameSolve* previous) const {
+  const int K = data_.num_bundles;
+  FrameSolve f;
+  const std::vector<char> observed =
+      BeginFrame(bundles, jaw, marker_index_, K, &f);
+  std::vector<Vec3> unskinned(K, Vec3::Zero());
+  int num_observed = 0;
+  for (int k = 0; k < K; ++k) {
+    if (!observed[k]) continue;
+    ++num_observed;
+    unskinned[k] = UnskinBundle(data_, k, jaw, f.bundles[k].observed);
+  }
+  const int needed = BundlesNeeded(options_.min_bundle_fraction, K);
+  if (num_observed < needed) {
+    f.ok = false;
+    f.reason = fmt::format("only {} of {} bundles observed (need {})",
+                           num_observed, K, needed);
+    return f;
+  }
+
+  TieGroups tie(K);
+  ParallelFor(0, K, [&](int64_t k) {
+    if (!observed[k]) return;
+    BundleSolve& out = f.bundles[k];
+    const IndexQuery q = GatherCandidates(static_cast<int>(k), unskinned[k]);
+    out.num_candidates = static_cast<int>(q.candidates.size());
+    if (q.candidates.empty()) return;  // filled from the neighbours below
+    std::vector<double> cost;
+    std::vector<int> rep, shared;
+    const double best = NeighbourCosts(static_cast<int>(k), q, observed,
+                                       unskinned, &cost, &rep);
+    const int chosen =
+        TemporalChoice(static_cast<int>(k), q, cost, best, previous, &shared);
+    // The exact tie group (cost within tie_mm2 of the best): settled below,
+    // once every bundle has a first choice, if its blends differ.
+    for (size_t c = 0; c < q.candidates.size(); ++c) {
+      if (cost[c] <= best + options_.tie_mm2) {
+        tie.candidates[k].push_back(q.candidates[c]);
+        tie.representative[k].push_back(rep[c]);
+        tie.cost[k].push_back(cost[c]);
+        tie.shared[k].push_back(shared[c]);
+      }
+    }
+    out.status = q.inside ? BundleSolve::Status::kInside
+                          : BundleSolve::Status::kProjected;
+    out.distance = q.distance;
+    Assign(static_cast<int>(k), q.candidates[chosen], cost[chosen], &out,
+           rep[chosen]);
+    tie.chosen_representative[k] = rep[chosen];
+  });
+  BreakTies(tie, &f);
+  FillMissing(&f);
   f.ok = true;
   return f;
 }
@@ -620,72 +613,35 @@ void LgiSolver::SmoothWeights(int window, std::vector<FrameSolve>* frames) {
   });
 }
 
-void SolveSummary::Count(const FrameSolve& frame) {
-  for (const BundleSolve& b : frame.bundles) {
-    switch (b.status) {
-      case BundleSolve::Status::kInside: ++bundles_inside; break;
-      case BundleSolve::Status::kProjected:
-        ++bundles_projected;
-        max_projection = std::max(max_projection, b.distance);
-        break;
-      case BundleSolve::Status::kFilled: ++bundles_filled; break;
-      case BundleSolve::Status::kUnused: break;
-    }
-  }
-}
-
 SolveResult LgiSolver::SolveSequence(
     const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
     const std::vector<std::string>& frame_errors) const {
-  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
-  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
-  const int F = static_cast<int>(frames.size());
   SolveResult result;
-  result.frames.resize(F);
+  // Steps 1-4, in order: the temporal preference looks at the previous
+  // good frame's choices.
   const FrameSolve* previous = nullptr;
-  {
-    Progress progress("lgi choice", F);
-    for (int f = 0; f < F; ++f) {
-      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-      if (!frame_errors.empty() && !frame_errors[f].empty()) {
-        FrameSolve& bad = result.frames[f];
-        bad.frame = frames[f].frame;
-        bad.jaw = pose;
-        bad.bundles.resize(data_.num_bundles);
-        bad.reason = frame_errors[f];
-        progress.Advance();
-        continue;
-      }
-      result.frames[f] = SolveFrame(frames[f], pose, previous);
-      if (result.frames[f].ok) previous = &result.frames[f];
-      progress.Advance();
-    }
-  }
+  SolveFrames(
+      frames, jaw, frame_errors, data_.num_bundles, "lgi choice",
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = SolveFrame(frames[f], pose, previous);
+        if (out->ok) previous = out;
+      },
+      &result);
+  // Step 5, then step 6 on the good frames; the bad ones repeat the
+  // previous good mesh.
   SmoothWeights(options_.smooth_window, &result.frames);
-  Progress progress("lgi blend", F);
+  const int F = static_cast<int>(frames.size());
   result.meshes.resize(F);
-  const MatX3d* last_good = nullptr;
   SolveSummary& s = result.summary;
   s.frames = F;
+  Progress progress("lgi blend", F);
   for (int f = 0; f < F; ++f) {
     FrameSolve& fs = result.frames[f];
-    if (fs.ok) {
-      result.meshes[f] = Blend(&fs);
-      last_good = &result.meshes[f];
-    } else {
-      ++s.bad_frames;
-      spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-      if (last_good) {
-        result.meshes[f] = *last_good;
-      } else {
-        result.meshes[f] = data_.jaw_rig
-                               ? Skin(*data_.jaw_rig, fs.jaw, neutral_.V)
-                               : neutral_.V;
-      }
-    }
+    if (fs.ok) result.meshes[f] = Blend(&fs);
     s.Count(fs);
     progress.Advance();
   }
+  FillBadMeshes(neutral_, data_.jaw_rig ? &*data_.jaw_rig : nullptr, &result);
   return result;
 }
 

@@ -1,6 +1,6 @@
 // The per-frame solve of local geometric indexing (paper, "Local Geometric
 // Indexing", "Choosing Tetrahedra", "Jaw Articulation", "Temporal
-// Smoothing"; DESIGN.md section 4, steps 4-9):
+// Smoothing"; docs/ARCHITECTURE.md, "Method steps", 4-9):
 //   1. unskin each observed bundle with the frame's jaw pose;
 //   2. query its index: every simplex containing it, else the closest ones;
 //   3. choose among the candidates by the neighbour criterion (how close the
@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "blending/frame_solve.h"
 #include "blending/natural_neighbour.h"
 #include "core/frame_data.h"
 #include "core/options.h"
@@ -50,60 +51,6 @@ struct SolveOptions {
 
   void Register(OptionFields* fields);
   bool Check() const;
-};
-
-// One bundle in one frame.
-struct BundleSolve {
-  enum class Status { kInside, kProjected, kFilled, kUnused };
-  Status status = Status::kUnused;
-  Vec3 observed = Vec3::Zero();  // head space (when observed)
-  double distance = 0.0;  // how far the unskinned bundle was projected (mm)
-  int num_candidates = 0;
-  int simplex = -1;                  // chosen simplex of its index
-  std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
-  std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
-                                                // shape, neutral omitted
-  double cost = 0.0;         // neighbour criterion of the choice (mm^2)
-  double residual = 0.0;     // |output surface at s_k - observed| (mm)
-};
-
-struct FrameSolve {
-  int frame = 0;
-  bool ok = false;
-  std::string reason;  // why a bad frame was skipped
-  JawPose jaw;
-  std::vector<BundleSolve> bundles;  // K, in marker order
-  int unknown_markers = 0;           // names not in the actor (ignored)
-};
-
-// How every solver (lgi and the baselines) starts a frame: a FrameSolve
-// with one BundleSolve per marker, the observed position of each bundle
-// named in `bundles` (marker_index: name -> marker), unknown names counted.
-// Returns K flags: which markers were observed.
-std::vector<char> BeginFrame(
-    const BundleFrame& bundles, const JawPose& jaw,
-    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
-    FrameSolve* frame);
-
-// Fewest observed bundles a frame needs: ceil(min_fraction * K), at least 1.
-int BundlesNeeded(double min_fraction, int num_bundles);
-
-struct SolveSummary {
-  int frames = 0;
-  int bad_frames = 0;
-  int64_t bundles_inside = 0;
-  int64_t bundles_projected = 0;
-  int64_t bundles_filled = 0;
-  double max_projection = 0.0;  // mm
-  // Adds the frame's bundles to the counts by status.
-  void Count(const FrameSolve& frame);
-  std::string BriefReport() const;
-};
-
-struct SolveResult {
-  std::vector<MatX3d> meshes;  // one V x 3 mesh per input frame (mm)
-  std::vector<FrameSolve> frames;
-  SolveSummary summary;
 };
 
 class LgiSolver {
@@ -151,6 +98,42 @@ class LgiSolver {
   static constexpr int kNoRepresentative = -2;
   void Assign(int k, const IndexCandidate& candidate, double cost,
               BundleSolve* out, int representative = kNoRepresentative) const;
+
+  // The pieces of SolveFrame (steps 2-4), in order.
+  // Step 2: the index's candidates for bundle k at its unskinned position,
+  // plus the cloud points within the pruning thresholds.
+  IndexQuery GatherCandidates(int k, const Vec3& unskinned) const;
+  // Step 3's neighbour criterion for each candidate (mm^2, plus its squared
+  // projection distance), with the shape a point candidate stands for
+  // (kNoRepresentative: its own); returns the best cost.
+  double NeighbourCosts(int k, const IndexQuery& q,
+                        const std::vector<char>& observed,
+                        const std::vector<Vec3>& unskinned,
+                        std::vector<double>* costs,
+                        std::vector<int>* representatives) const;
+  // Step 3's choice within the slack: the candidate sharing the most shapes
+  // with the previous frame's choice (temporal preference), then the
+  // cheapest; *shared_shapes: per candidate, the shapes shared.
+  int TemporalChoice(int k, const IndexQuery& q,
+                     const std::vector<double>& cost, double best,
+                     const FrameSolve* previous,
+                     std::vector<int>* shared_shapes) const;
+  // Per bundle, the candidates whose cost ties with the best one.
+  struct TieGroups {
+    explicit TieGroups(int num_bundles)
+        : candidates(num_bundles), cost(num_bundles),
+          representative(num_bundles), shared(num_bundles),
+          chosen_representative(num_bundles, kNoRepresentative) {}
+    std::vector<std::vector<IndexCandidate>> candidates;
+    std::vector<std::vector<double>> cost;
+    std::vector<std::vector<int>> representative;
+    std::vector<std::vector<int>> shared;
+    std::vector<int> chosen_representative;  // of the first choice
+  };
+  // Step 3's ties: settled by the frame's consensus, then least motion.
+  void BreakTies(const TieGroups& tie, FrameSolve* frame) const;
+  // Step 4: missing bundles take their neighbours' weights.
+  void FillMissing(FrameSolve* frame) const;
 
   const TriMesh& neutral_;
   const ShapeData& data_;

@@ -101,8 +101,11 @@ std::vector<double> LambdaGrid() {
   return grid;
 }
 
+}  // namespace
+
 // The kernel decompositions of one sequence, per width and observed set
-// (frames usually share one set), each computed once.
+// (frames usually share one set), each computed once. (Outside the anonymous
+// namespace: RobustSolver::Sequence holds one.)
 class BasisCache {
  public:
   explicit BasisCache(const std::vector<KernelSmoother>& smoothers)
@@ -122,6 +125,27 @@ class BasisCache {
   const std::vector<KernelSmoother>& smoothers_;
   std::vector<std::map<std::vector<char>, KernelSmoother::Basis>> bases_;
 };
+
+// The state of one sequence solve, handed from step to step.
+struct RobustSolver::Sequence {
+  explicit Sequence(const std::vector<KernelSmoother>& smoothers)
+      : bases(smoothers) {}
+  SolveResult result;
+  std::vector<Work> work;  // per frame
+  std::vector<int> good;   // frames with both fits, in order
+  std::vector<const std::vector<char>*> good_observed;  // their observed sets
+  BasisCache bases;
+  // Per good frame, K: the global fit's residuals at the bundles and their
+  // leave-one-out counterparts (step 2b).
+  std::vector<std::vector<Vec3>> global_residual, global_loo;
+  double sigma = 0.0;       // the marker noise (mm)
+  double sel_sigma2 = 0.0;  // the noise variance step 3 allows (mm^2)
+  int width_index = -1;     // the correction's width (-1: none)
+  double lambda = 0.0;      // and its smoothing
+  RobustReport report;
+};
+
+namespace {
 
 // The best (width index, lambda) for the residuals of every good frame
 // (K entries each, over the frame's observed bundles), by C_p for a known
@@ -484,38 +508,67 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
   return out;
 }
 
-SolveResult RobustSolver::SolveSequence(
-    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
-    const std::vector<std::string>& frame_errors) {
-  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
-  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
-  const int F = static_cast<int>(frames.size()), K = data_.num_bundles;
-  report_ = RobustReport();
-  SolveResult result;
-  result.frames.resize(F);
-  result.meshes.resize(F);
-  std::vector<Work> work(F);
+std::string RobustReport::BriefReport(bool interpolate,
+                                      int good_frames) const {
+  return fmt::format(
+      "marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
+      "mm for the shape prior), global ridge per shape {:.3g} (median; "
+      "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
+      "choice, {} the global fit",
+      noise_mm, noise_estimated ? "estimated" : "given",
+      selection_noise_mm, prior_noise_mm, ridge,
+      ridge_min,
+      lambda > 0
+          ? fmt::format("width {:.1f} mm, smoothing {:.3g} ({} of {} frames "
+                        "left uncorrected)",
+                        width_mm, lambda,
+                        frames_uncorrected, good_frames)
+          : std::string("none"),
+      interpolate
+          ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
+                        bundles_interpolated, threshold_mm)
+          : std::string("no interpolation"),
+      bundles_local, bundles_global);
+}
 
+MethodReport RobustReport::ToMethodReport(bool interpolate,
+                                          int good_frames) const {
+  MethodReport r;
+  r.values = {{"noise_mm", noise_mm},
+              {"noise_estimated", noise_estimated ? 1.0 : 0.0},
+              {"selection_noise_mm", selection_noise_mm},
+              {"prior_noise_mm", prior_noise_mm},
+              {"ridge_median", ridge},
+              {"ridge_min", ridge_min},
+              {"correction_width_mm", width_mm},
+              {"correction_smoothing", lambda},
+              {"frames_uncorrected", static_cast<double>(frames_uncorrected)},
+              {"interpolation_threshold_mm", threshold_mm},
+              {"bundles_interpolated",
+               static_cast<double>(bundles_interpolated)},
+              {"bundles_local", static_cast<double>(bundles_local)},
+              {"bundles_global", static_cast<double>(bundles_global)}};
+  r.brief = BriefReport(interpolate, good_frames);
+  return r;
+}
+
+void RobustSolver::SolveLgiAndGlobal(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors, Sequence* seq) const {
+  const int F = static_cast<int>(frames.size()), K = data_.num_bundles;
+  SolveResult& result = seq->result;
+  std::vector<Work>& work = seq->work;
+  work.resize(F);
   // Step 1: lgi's choices, frame by frame (its temporal preference looks at
   // the previous frame) ...
-  {
-    Progress progress("robust: lgi choice", F);
-    const FrameSolve* previous = nullptr;
-    for (int f = 0; f < F; ++f) {
-      const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-      FrameSolve& fs = result.frames[f];
-      progress.Advance();
-      if (!frame_errors.empty() && !frame_errors[f].empty()) {
-        fs.frame = frames[f].frame;
-        fs.jaw = pose;
-        fs.bundles.resize(K);
-        fs.reason = frame_errors[f];
-        continue;
-      }
-      fs = lgi_.SolveFrame(frames[f], pose, previous);
-      if (fs.ok) previous = &fs;
-    }
-  }
+  const FrameSolve* previous = nullptr;
+  SolveFrames(
+      frames, jaw, frame_errors, K, "robust: lgi choice",
+      [&](int f, const JawPose& pose, FrameSolve* out) {
+        *out = lgi_.SolveFrame(frames[f], pose, previous);
+        if (out->ok) previous = out;
+      },
+      &result);
   // ... and the global fit, in runs of consecutive frames solved in
   // parallel, each frame warm-started from the one before it in its run.
   // Short runs keep the cores evenly loaded (24 frames in runs of 8 left one
@@ -554,20 +607,24 @@ SolveResult RobustSolver::SolveSequence(
     }
   });
   LgiSolver::SmoothWeights(solve_options_.smooth_window, &result.frames);
+  result.meshes.resize(F);
 
-  std::vector<int> good;
-  std::vector<const std::vector<char>*> good_observed;
   for (int f = 0; f < F; ++f) {
     if (work[f].ok) {
-      good.push_back(f);
-      good_observed.push_back(&work[f].observed);
+      seq->good.push_back(f);
+      seq->good_observed.push_back(&work[f].observed);
     }
   }
+}
 
-  BasisCache bases(smoothers_);
-
+void RobustSolver::EstimateNoise(Sequence* seq) const {
+  const int K = data_.num_bundles;
+  const std::vector<Work>& work = seq->work;
+  const std::vector<int>& good = seq->good;
+  RobustReport& report = seq->report;
   // Step 2: the noise level, from the global fit's residuals when not given.
-  std::vector<std::vector<Vec3>> global_residual(good.size());
+  std::vector<std::vector<Vec3>>& global_residual = seq->global_residual;
+  global_residual.resize(good.size());
   for (size_t i = 0; i < good.size(); ++i) {
     const Work& wk = work[good[i]];
     global_residual[i].assign(K, Vec3::Zero());
@@ -578,53 +635,72 @@ SolveResult RobustSolver::SolveSequence(
       }
     }
   }
-  double sigma = options_.noise_mm;
+  double& sigma = seq->sigma;
+  sigma = options_.noise_mm;
   if (sigma < 0) {
-    report_.noise_estimated = true;
+    report.noise_estimated = true;
     sigma = 0;
     if (!good.empty()) {
       KernelFit fit;
-      ChooseSmoothing(smoothers_, &bases, good_observed, global_residual,
+      ChooseSmoothing(smoothers_, &seq->bases, seq->good_observed, global_residual,
                       false, 0.0,
                       &fit);
       sigma = std::sqrt(fit.NoiseVariance());
     }
   }
-  report_.noise_mm = sigma;
+  report.noise_mm = sigma;
 
-  // The noise the choice of step 3 allows for: when estimated, also bounded
-  // by the median over bundles of the better model's neighbourhood error per
-  // coordinate, min(cost_lgi / 3 (m - 1), cost_global / 3 m), from the
-  // current global residuals. The global fit's residual counts expressions
-  // the dataset lacks as noise (held-out frames without noise estimate
-  // 0.2 mm); where lgi explains the neighbours exactly, this bound is 0.
-  auto choice_noise2 = [&]() {
-    const double s2 = sigma * sigma;
-    if (options_.noise_mm >= 0) return s2;
-    std::vector<double> v;
-    for (size_t i = 0; i < good.size(); ++i) {
-      const Work& wk = work[good[i]];
-      const FrameSolve& fs = result.frames[good[i]];
-      for (int k = 0; k < K; ++k) {
-        if (!wk.observed[k]) continue;
-        int m = 0;
-        const double cg = NeighbourhoodEnergy(global_residual[i], wk, k, &m);
-        if (m < 2) continue;
-        v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
-                             cg / (3.0 * m)));
-      }
+}
+
+// The noise the choice of step 3 allows for: when estimated, also bounded
+// by the median over bundles of the better model's neighbourhood error per
+// coordinate, min(cost_lgi / 3 (m - 1), cost_global / 3 m), from the
+// current global residuals. The global fit's residual counts expressions
+// the dataset lacks as noise (held-out frames without noise estimate
+// 0.2 mm); where lgi explains the neighbours exactly, this bound is 0.
+double RobustSolver::ChoiceNoiseVariance(const Sequence& seq) const {
+  const int K = data_.num_bundles;
+  const double sigma = seq.sigma;
+  const std::vector<Work>& work = seq.work;
+  const std::vector<int>& good = seq.good;
+  const SolveResult& result = seq.result;
+  const std::vector<std::vector<Vec3>>& global_residual = seq.global_residual;
+  const double s2 = sigma * sigma;
+  if (options_.noise_mm >= 0) return s2;
+  std::vector<double> v;
+  for (size_t i = 0; i < good.size(); ++i) {
+    const Work& wk = work[good[i]];
+    const FrameSolve& fs = result.frames[good[i]];
+    for (int k = 0; k < K; ++k) {
+      if (!wk.observed[k]) continue;
+      int m = 0;
+      const double cg = NeighbourhoodEnergy(global_residual[i], wk, k, &m);
+      if (m < 2) continue;
+      v.push_back(std::min(fs.bundles[k].cost / (3.0 * (m - 1)),
+                           cg / (3.0 * m)));
     }
-    if (v.empty()) return s2;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return std::min(s2, v[v.size() / 2]);
-  };
+  }
+  if (v.empty()) return s2;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return std::min(s2, v[v.size() / 2]);
+}
 
+void RobustSolver::FitShapePrior(Sequence* seq) const {
+  const int K = data_.num_bundles;
+  std::vector<Work>& work = seq->work;
+  const std::vector<int>& good = seq->good;
+  const double sigma = seq->sigma;
+  RobustReport& report = seq->report;
+  std::vector<std::vector<Vec3>>& global_residual = seq->global_residual;
+  const std::vector<const std::vector<char>*>& good_observed =
+      seq->good_observed;
   // Step 2b: the global fit again, with the ridge the noise calls for.
   // Then its residuals as a fit without each bundle would leave them: lgi's
   // cost in step 3 is a prediction (its simplex passes through the bundle
   // and is scored on the neighbours), so the global fit is scored by
   // prediction too, not by residuals it was fitted to.
-  std::vector<std::vector<Vec3>> global_loo(good.size());
+  std::vector<std::vector<Vec3>>& global_loo = seq->global_loo;
+  global_loo.resize(good.size());
   {
     std::vector<Eigen::VectorXd> disp(good.size());
     for (size_t i = 0; i < good.size(); ++i) {
@@ -638,13 +714,13 @@ SolveResult RobustSolver::SolveSequence(
             ? Eigen::VectorXd::Constant(data_.num_shapes, options_.ridge)
             : ChooseShapeRidges(
                   global_, good_observed, disp, sigma,
-                  options_.noise_mm < 0 ? std::sqrt(choice_noise2()) : -1.0,
-                  data_.num_shapes, &report_.prior_noise_mm);
+                  options_.noise_mm < 0 ? std::sqrt(ChoiceNoiseVariance(*seq)) : -1.0,
+                  data_.num_shapes, &report.prior_noise_mm);
     std::vector<double> sorted(ridges.data(), ridges.data() + ridges.size());
     std::sort(sorted.begin(), sorted.end());
-    report_.shape_ridge.assign(ridges.data(), ridges.data() + ridges.size());
-    report_.ridge_min = sorted.front();
-    report_.ridge = sorted[sorted.size() / 2];
+    report.shape_ridge.assign(ridges.data(), ridges.data() + ridges.size());
+    report.ridge_min = sorted.front();
+    report.ridge = sorted[sorted.size() / 2];
     if (sorted.back() > 0) {
       ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
         Work& wk = work[good[i]];
@@ -666,10 +742,19 @@ SolveResult RobustSolver::SolveSequence(
           wk.observed, wk.global, fitted_ridges, global_residual[i]);
     }, 1);
   }
+}
 
+void RobustSolver::ChooseLocalOrGlobal(Sequence* seq) const {
+  const int K = data_.num_bundles;
+  std::vector<Work>& work = seq->work;
+  const std::vector<int>& good = seq->good;
+  SolveResult& result = seq->result;
+  RobustReport& report = seq->report;
+  const std::vector<std::vector<Vec3>>& global_loo = seq->global_loo;
   // Step 3: per bundle, lgi's choice or the global weights.
-  const double sel_sigma2 = choice_noise2();
-  report_.selection_noise_mm = std::sqrt(sel_sigma2);
+  seq->sel_sigma2 = ChoiceNoiseVariance(*seq);
+  const double sel_sigma2 = seq->sel_sigma2;
+  report.selection_noise_mm = std::sqrt(sel_sigma2);
   const double per_bundle = options_.margin * 3.0 * sel_sigma2;
   for (size_t i = 0; i < good.size(); ++i) {
     Work& wk = work[good[i]];
@@ -683,9 +768,9 @@ SolveResult RobustSolver::SolveSequence(
       if (options_.local && fs.bundles[k].cost + per_bundle * m <=
                                 cost_global + m * solve_options_.tie_mm2) {
         wk.use_global[k] = 0;
-        ++report_.bundles_local;
+        ++report.bundles_local;
       } else {
-        ++report_.bundles_global;
+        ++report.bundles_global;
       }
     }
     for (int k = 0; k < K; ++k) {
@@ -697,125 +782,152 @@ SolveResult RobustSolver::SolveSequence(
     }
   }
 
-  // Step 5's width and smoothing, from the blend's residuals at the bundles.
+}
+
+// Step 5's width and smoothing, from the blend's residuals at the bundles
+// (options_.correct, some good frame): sets seq->width_index and
+// seq->lambda (-1 and 0: no correction) and each corrected frame's
+// coefficients; keeps each bundle's residual for the interpolation.
+void RobustSolver::ChooseCorrection(Sequence* seq) {
+  const int K = data_.num_bundles;
+  std::vector<Work>& work = seq->work;
+  const std::vector<int>& good = seq->good;
+  const std::vector<const std::vector<char>*>& good_observed =
+      seq->good_observed;
+  const SolveResult& result = seq->result;
+  RobustReport& report = seq->report;
+  BasisCache& bases = seq->bases;
+  const double sel_sigma2 = seq->sel_sigma2;
+  int& width_index = seq->width_index;
+  double& lambda = seq->lambda;
   const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
-  int width_index = -1;
-  double lambda = 0.0;
-  if (options_.correct && !good.empty()) {
-    std::vector<std::vector<Vec3>> residuals(good.size());
-    ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+  std::vector<std::vector<Vec3>> residuals(good.size());
+  ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+    Work& wk = work[good[i]];
+    const FrameSolve& fs = result.frames[good[i]];
+    wk.residual.assign(K, Vec3::Zero());
+    for (int k = 0; k < K; ++k) {
+      if (!wk.observed[k]) continue;
+      // The residual where the output is: the skinned surface point
+      // (each corner with its own jaw weight) against the observed
+      // bundle, taken back to unskinned space by the site's skinning
+      // matrix. (UnskinBundle's inverse assumes the neutral triangle, so
+      // d_k - blend(s_k) would show up to ~0.003 mm even for an exact
+      // dataset shape.)
+      const SurfacePoint& s = data_.sites[k];
+      Vec3 x = Vec3::Zero();
+      for (int c = 0; c < 3; ++c) {
+        const int v = neutral_.F(s.face, c);
+        const Vec3 xv = BlendVertex(wk, fs, v);
+        x += s.bary[c] *
+             (rig ? SkinPoint(*rig, fs.jaw, xv, rig->weights[v]) : xv);
+      }
+      const Vec3 r = fs.bundles[k].observed - x;
+      if (rig) {
+        const double w = data_.site_jaw_weight[k];
+        const Mat3 a = (1.0 - w) * Mat3::Identity() +
+                       w * rig->Transform(fs.jaw).linear();
+        wk.residual[k] = a.partialPivLu().solve(r);
+      } else {
+        wk.residual[k] = r;
+      }
+    }
+    // Only the residual the noise does not explain: each bundle's is
+    // shrunk by its neighbourhood's energy against the noise's,
+    // max(0, 1 - 3 sigma^2 m / sum |r_j|^2) (positive-part James-Stein).
+    residuals[i].assign(K, Vec3::Zero());
+    for (int k = 0; k < K; ++k) {
+      if (!wk.observed[k]) continue;
+      int m = 0;
+      const double energy = NeighbourhoodEnergy(wk.residual, wk, k, &m);
+      const double noise = 3.0 * sel_sigma2 * m;
+      const double keep =
+          energy > noise ? 1.0 - noise / energy : 0.0;
+      residuals[i][k] = keep * wk.residual[k];
+    }
+  });
+  KernelFit fit;
+  double noise = options_.noise_mm;
+  if (noise < 0) {
+    ChooseSmoothing(smoothers_, &bases, good_observed, residuals, false,
+                    0.0, &fit);
+    noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
+  }
+  std::tie(width_index, lambda) = ChooseSmoothing(
+      smoothers_, &bases, good_observed, residuals, true, noise, &fit);
+  if (options_.smoothing > 0) lambda = options_.smoothing;
+  if (std::isinf(lambda)) {
+    width_index = -1;  // no correction
+    lambda = 0.0;
+  } else {
+    if (!vertex_kernel_.count(width_index)) {
+      vertex_kernel_[width_index] = GaussianKernelMatrix(
+          neutral_.V, data_.site_neutral, smoothers_[width_index].width(),
+          1e-6);
+    }
+    report.width_mm = smoothers_[width_index].width();
+    // Per frame, the correction only where it predicts each bundle's
+    // residual from the other bundles' better than no correction does
+    // (leave-one-out): C_p pooled over the sequence measures the error at
+    // the bundles, and a frame whose residual is a few isolated bundles
+    // (lgi projected them) gains there but loses between the markers.
+    const KernelSmoother& smoother = smoothers_[width_index];
+    for (size_t i = 0; i < good.size(); ++i) {
       Work& wk = work[good[i]];
-      const FrameSolve& fs = result.frames[good[i]];
-      wk.residual.assign(K, Vec3::Zero());
-      for (int k = 0; k < K; ++k) {
-        if (!wk.observed[k]) continue;
-        // The residual where the output is: the skinned surface point
-        // (each corner with its own jaw weight) against the observed
-        // bundle, taken back to unskinned space by the site's skinning
-        // matrix. (UnskinBundle's inverse assumes the neutral triangle, so
-        // d_k - blend(s_k) would show up to ~0.003 mm even for an exact
-        // dataset shape.)
-        const SurfacePoint& s = data_.sites[k];
-        Vec3 x = Vec3::Zero();
-        for (int c = 0; c < 3; ++c) {
-          const int v = neutral_.F(s.face, c);
-          const Vec3 xv = BlendVertex(wk, fs, v);
-          x += s.bary[c] *
-               (rig ? SkinPoint(*rig, fs.jaw, xv, rig->weights[v]) : xv);
-        }
-        const Vec3 r = fs.bundles[k].observed - x;
-        if (rig) {
-          const double w = data_.site_jaw_weight[k];
-          const Mat3 a = (1.0 - w) * Mat3::Identity() +
-                         w * rig->Transform(fs.jaw).linear();
-          wk.residual[k] = a.partialPivLu().solve(r);
-        } else {
-          wk.residual[k] = r;
-        }
+      const KernelSmoother::Basis& basis =
+          bases.Get(width_index, wk.observed);
+      const Eigen::MatrixXd data = smoother.Data(basis, residuals[i]);
+      const Eigen::MatrixXd z = basis.vectors.transpose() * data;
+      if (options_.smoothing <= 0 &&  // a given smoothing is kept
+          smoother.LeaveOneOutRss(basis, z, lambda) >= z.squaredNorm()) {
+        ++report.frames_uncorrected;
+        continue;
       }
-      // Only the residual the noise does not explain: each bundle's is
-      // shrunk by its neighbourhood's energy against the noise's,
-      // max(0, 1 - 3 sigma^2 m / sum |r_j|^2) (positive-part James-Stein).
-      residuals[i].assign(K, Vec3::Zero());
-      for (int k = 0; k < K; ++k) {
-        if (!wk.observed[k]) continue;
-        int m = 0;
-        const double energy = NeighbourhoodEnergy(wk.residual, wk, k, &m);
-        const double noise = 3.0 * sel_sigma2 * m;
-        const double keep =
-            energy > noise ? 1.0 - noise / energy : 0.0;
-        residuals[i][k] = keep * wk.residual[k];
-      }
-    });
-    KernelFit fit;
-    double noise = options_.noise_mm;
-    if (noise < 0) {
-      ChooseSmoothing(smoothers_, &bases, good_observed, residuals, false,
-                      0.0, &fit);
-      noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
-    }
-    std::tie(width_index, lambda) = ChooseSmoothing(
-        smoothers_, &bases, good_observed, residuals, true, noise, &fit);
-    if (options_.smoothing > 0) lambda = options_.smoothing;
-    if (std::isinf(lambda)) {
-      width_index = -1;  // no correction
-      lambda = 0.0;
-    } else {
-      if (!vertex_kernel_.count(width_index)) {
-        vertex_kernel_[width_index] = GaussianKernelMatrix(
-            neutral_.V, data_.site_neutral, smoothers_[width_index].width(),
-            1e-6);
-      }
-      report_.width_mm = smoothers_[width_index].width();
-      // Per frame, the correction only where it predicts each bundle's
-      // residual from the other bundles' better than no correction does
-      // (leave-one-out): C_p pooled over the sequence measures the error at
-      // the bundles, and a frame whose residual is a few isolated bundles
-      // (lgi projected them) gains there but loses between the markers.
-      const KernelSmoother& smoother = smoothers_[width_index];
-      for (size_t i = 0; i < good.size(); ++i) {
-        Work& wk = work[good[i]];
-        const KernelSmoother::Basis& basis =
-            bases.Get(width_index, wk.observed);
-        const Eigen::MatrixXd data = smoother.Data(basis, residuals[i]);
-        const Eigen::MatrixXd z = basis.vectors.transpose() * data;
-        if (options_.smoothing <= 0 &&  // a given smoothing is kept
-            smoother.LeaveOneOutRss(basis, z, lambda) >= z.squaredNorm()) {
-          ++report_.frames_uncorrected;
-          continue;
-        }
-        wk.alpha = smoother.Coefficients(basis, data, lambda);
-      }
-    }
-    // What the kernel leaves at each bundle beyond the noise's universal
-    // threshold, interpolated by the blend's own weights.
-    if (options_.interpolate) {
-      const double tau = std::sqrt(sel_sigma2 * 3.0 * 2.0 * std::log(3.0 * K));
-      report_.threshold_mm = tau;
-      for (const int f : good) {
-        Work& wk = work[f];
-        const Eigen::MatrixXd fitted =
-            wk.alpha.size() > 0 ? smoothers_[width_index].AtSites(wk.alpha)
-                                : Eigen::MatrixXd::Zero(K, 3);
-        wk.offset.assign(K, Vec3::Zero());
-        for (int k = 0; k < K; ++k) {
-          if (!wk.observed[k]) continue;
-          const Vec3 e = wk.residual[k] - fitted.row(k).transpose();
-          const double norm = e.norm();
-          if (norm <= tau) continue;
-          wk.offset[k] = (1.0 - tau / norm) * e;
-          ++report_.bundles_interpolated;
-        }
-      }
+      wk.alpha = smoother.Coefficients(basis, data, lambda);
     }
   }
-  report_.lambda = lambda;
+}
 
-  // Steps 4-6, kBlendBatch good frames at a time.
+// What the kernel leaves at each bundle beyond the noise's universal
+// threshold, interpolated by the blend's own weights.
+// (options_.interpolate; after ChooseCorrection).
+void RobustSolver::InterpolateBeyondThreshold(Sequence* seq) const {
+  const int K = data_.num_bundles;
+  std::vector<Work>& work = seq->work;
+  const std::vector<int>& good = seq->good;
+  RobustReport& report = seq->report;
+  const double sel_sigma2 = seq->sel_sigma2;
+  const int width_index = seq->width_index;
+  const double tau = std::sqrt(sel_sigma2 * 3.0 * 2.0 * std::log(3.0 * K));
+  report.threshold_mm = tau;
+  for (const int f : good) {
+    Work& wk = work[f];
+    const Eigen::MatrixXd fitted =
+        wk.alpha.size() > 0 ? smoothers_[width_index].AtSites(wk.alpha)
+                            : Eigen::MatrixXd::Zero(K, 3);
+    wk.offset.assign(K, Vec3::Zero());
+    for (int k = 0; k < K; ++k) {
+      if (!wk.observed[k]) continue;
+      const Vec3 e = wk.residual[k] - fitted.row(k).transpose();
+      const double norm = e.norm();
+      if (norm <= tau) continue;
+      wk.offset[k] = (1.0 - tau / norm) * e;
+      ++report.bundles_interpolated;
+    }
+  }
+}
+
+// Steps 4-6, kBlendBatch good frames at a time; bad frames repeat the
+// previous good mesh.
+void RobustSolver::BlendFrames(Sequence* seq) const {
+  const int F = static_cast<int>(seq->work.size()), K = data_.num_bundles;
+  const std::vector<Work>& work = seq->work;
+  SolveResult& result = seq->result;
+  const int width_index = seq->width_index;
+  const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
   Progress progress("robust: blend", F);
   SolveSummary& s = result.summary;
   s.frames = F;
-  const MatX3d* last_good = nullptr;
   const auto* kernel =
       width_index >= 0 ? &vertex_kernel_.at(width_index) : nullptr;
   for (int begin = 0; begin < F;) {
@@ -834,7 +946,6 @@ SolveResult RobustSolver::SolveSequence(
       const Work& wk = work[f];
       if (wk.ok) {
         result.meshes[f] = std::move(blended[i++]);
-        last_good = &result.meshes[f];
         for (int k = 0; k < K; ++k) {
           BundleSolve& b = fs.bundles[k];
           if (wk.observed[k]) {
@@ -844,38 +955,38 @@ SolveResult RobustSolver::SolveSequence(
                              .norm();
           }
         }
-      } else {
-        ++s.bad_frames;
-        spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
-        result.meshes[f] =
-            last_good ? *last_good
-                      : (rig ? Skin(*rig, fs.jaw, neutral_.V) : neutral_.V);
       }
       s.Count(fs);
       progress.Advance();
     }
     begin = end;
   }
-  spdlog::info(
-      "robust: marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
-      "mm for the shape prior), global ridge per shape {:.3g} (median; "
-      "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
-      "choice, {} the global fit",
-      report_.noise_mm, report_.noise_estimated ? "estimated" : "given",
-      report_.selection_noise_mm, report_.prior_noise_mm, report_.ridge,
-      report_.ridge_min,
-      report_.lambda > 0
-          ? fmt::format("width {:.1f} mm, smoothing {:.3g} ({} of {} frames "
-                        "left uncorrected)",
-                        report_.width_mm, report_.lambda,
-                        report_.frames_uncorrected, good.size())
-          : std::string("none"),
-      options_.interpolate
-          ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
-                        report_.bundles_interpolated, report_.threshold_mm)
-          : std::string("no interpolation"),
-      report_.bundles_local, report_.bundles_global);
-  return result;
+  FillBadMeshes(neutral_, rig, &result);
+}
+
+SolveResult RobustSolver::SolveSequence(
+    const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
+    const std::vector<std::string>& frame_errors, RobustReport* report_out) {
+  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
+  HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
+  Sequence seq(smoothers_);
+  SolveLgiAndGlobal(frames, jaw, frame_errors, &seq);  // step 1
+  EstimateNoise(&seq);                                 // step 2
+  FitShapePrior(&seq);                                 // step 2b
+  ChooseLocalOrGlobal(&seq);                           // step 3
+  if (options_.correct && !seq.good.empty()) {
+    ChooseCorrection(&seq);  // step 5's width and smoothing
+    if (options_.interpolate) InterpolateBeyondThreshold(&seq);
+  }
+  seq.report.lambda = seq.lambda;
+  BlendFrames(&seq);  // steps 4-6
+  const int good_frames = static_cast<int>(seq.good.size());
+  spdlog::info("robust: {}",
+               seq.report.BriefReport(options_.interpolate, good_frames));
+  seq.result.report =
+      seq.report.ToMethodReport(options_.interpolate, good_frames);
+  if (report_out) *report_out = std::move(seq.report);
+  return std::move(seq.result);
 }
 
 }  // namespace hmc

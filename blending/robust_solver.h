@@ -108,7 +108,9 @@ struct RobustOptions {
   bool Check() const;
 };
 
-// What the solve of the last sequence estimated (for logs and tests).
+// What one sequence solve estimated, returned with its result
+// (SolveResult::report holds it as named values; SolveSequence's `report`
+// argument gets it typed).
 struct RobustReport {
   double noise_mm = 0.0;      // sigma used (given or estimated)
   double selection_noise_mm = 0.0;  // sigma the choice of step 3 allowed
@@ -125,6 +127,11 @@ struct RobustReport {
   int64_t bundles_interpolated = 0;  // bundle-frames left beyond it
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice
   int64_t bundles_global = 0;
+
+  // One line, as `hmc solve` logs it.
+  std::string BriefReport(bool interpolate, int good_frames) const;
+  // Named values for SolveResult::report (shape_ridge left out: N numbers).
+  MethodReport ToMethodReport(bool interpolate, int good_frames) const;
 };
 
 class RobustSolver {
@@ -138,15 +145,38 @@ class RobustSolver {
 
   // Same inputs, outputs and bad-frame conventions as
   // LgiSolver::SolveSequence. Each bundle's weights are its lgi choice or
-  // the global weights; the residuals are the output mesh's.
+  // the global weights; the residuals are the output mesh's. The result's
+  // report is the RobustReport's values; `report` (optional) gets it typed.
   SolveResult SolveSequence(const std::vector<BundleFrame>& frames,
                             const std::vector<JawPose>& jaw,
-                            const std::vector<std::string>& frame_errors = {});
-
-  const RobustReport& report() const { return report_; }
+                            const std::vector<std::string>& frame_errors = {},
+                            RobustReport* report = nullptr);
 
  private:
   struct Work;
+  struct Sequence;
+  // The steps of SolveSequence (this header's top comment numbers them),
+  // each on the sequence's state.
+  // Step 1: lgi's choices frame by frame and the bounded global fit.
+  void SolveLgiAndGlobal(const std::vector<BundleFrame>& frames,
+                         const std::vector<JawPose>& jaw,
+                         const std::vector<std::string>& frame_errors,
+                         Sequence* seq) const;
+  // Step 2: the marker noise, from the global fit's residuals unless given.
+  void EstimateNoise(Sequence* seq) const;
+  // The noise variance the choice of step 3 allows for (mm^2).
+  double ChoiceNoiseVariance(const Sequence& seq) const;
+  // Step 2b: the global fit again with the per-shape ridge, and its
+  // leave-one-out residuals.
+  void FitShapePrior(Sequence* seq) const;
+  // Step 3: per bundle, lgi's choice or the global weights.
+  void ChooseLocalOrGlobal(Sequence* seq) const;
+  // Step 5: the correction's width and smoothing (caches the kernel).
+  void ChooseCorrection(Sequence* seq);
+  // Step 5: what the correction leaves beyond the threshold, interpolated.
+  void InterpolateBeyondThreshold(Sequence* seq) const;
+  // Steps 4-6: the blend of every good frame; bad frames filled.
+  void BlendFrames(Sequence* seq) const;
   // sum |r_j|^2 over observed bundle k and its observed natural neighbours;
   // *count: how many.
   double NeighbourhoodEnergy(const std::vector<Vec3>& r, const Work& work,
@@ -172,7 +202,6 @@ class RobustSolver {
   const BlendshapeSolver& global_;
   SolveOptions solve_options_;
   RobustOptions options_;
-  RobustReport report_;
   // Smoothers of the candidate widths (kWidthScales marker spacings) and,
   // once a width was chosen, its kernel at the vertices (V x K).
   std::vector<KernelSmoother> smoothers_;

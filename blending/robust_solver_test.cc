@@ -30,6 +30,7 @@ struct RobustFixture : SmallLgiModel {
 
   BlendshapeSolver global;
   RobustSolver robust;
+  RobustReport report;  // of the last robust solve
 };
 
 // Mean vertex error of a solve against the truth meshes (mm).
@@ -72,7 +73,7 @@ TEST_P(RobustSeeds, DatasetShapesReconstructExactly) {
       poses.push_back(fx.actor.shapes[n].jaw);
     }
     const SolveResult result =
-        fx.robust.SolveSequence(frames, jaw ? poses : std::vector<JawPose>{});
+        fx.robust.SolveSequence(frames, jaw ? poses : std::vector<JawPose>{}, {}, &fx.report);
     double worst = 0;
     for (size_t f = 0; f < truth.size(); ++f) {
       ASSERT_TRUE(result.frames[f].ok) << result.frames[f].reason;
@@ -80,8 +81,8 @@ TEST_P(RobustSeeds, DatasetShapesReconstructExactly) {
                        (result.meshes[f] - truth[f]).rowwise().norm().maxCoeff());
     }
     EXPECT_LE(worst, 1e-3);
-    EXPECT_LT(fx.robust.report().noise_mm, 1e-3);
-    EXPECT_TRUE(fx.robust.report().noise_estimated);
+    EXPECT_LT(fx.report.noise_mm, 1e-3);
+    EXPECT_TRUE(fx.report.noise_estimated);
   }
 }
 
@@ -108,9 +109,9 @@ TEST_P(RobustSeeds, NoisyMarkersAreAveragedNotFollowed) {
                     (1 - s) * fx.actor.shapes[b].displacement);
     frames.push_back(fx.Bundles(f + 1, truth.back(), sigma, &rng));
   }
-  const SolveResult robust = fx.robust.SolveSequence(frames, {});
-  EXPECT_NEAR(fx.robust.report().noise_mm, sigma, 0.25 * sigma);
-  EXPECT_GT(fx.robust.report().ridge, 0.0);
+  const SolveResult robust = fx.robust.SolveSequence(frames, {}, {}, &fx.report);
+  EXPECT_NEAR(fx.report.noise_mm, sigma, 0.25 * sigma);
+  EXPECT_GT(fx.report.ridge, 0.0);
   const double e_robust = MeanError(robust, truth);
   const double e_lgi = MeanError(fx.lgi.SolveSequence(frames, {}), truth);
   const double e_global = MeanError(fx.global.SolveSequence(frames, {}), truth);
@@ -121,9 +122,9 @@ TEST_P(RobustSeeds, NoisyMarkersAreAveragedNotFollowed) {
   RobustOptions given;
   given.noise_mm = sigma;
   RobustFixture fixed(GetParam(), /*jaw=*/false, given);
-  fixed.robust.SolveSequence(frames, {});
-  EXPECT_EQ(fixed.robust.report().noise_mm, sigma);
-  EXPECT_FALSE(fixed.robust.report().noise_estimated);
+  fixed.robust.SolveSequence(frames, {}, {}, &fixed.report);
+  EXPECT_EQ(fixed.report.noise_mm, sigma);
+  EXPECT_FALSE(fixed.report.noise_estimated);
 }
 
 // A sequence that uses a few shapes (a performance): the evidence gives every
@@ -150,8 +151,8 @@ TEST_P(RobustSeeds, ShapesTheSequenceDoesNotUseAreHeldBack) {
     truth.push_back(x);
     frames.push_back(fx.Bundles(f + 1, x, sigma, &rng));
   }
-  const SolveResult robust = fx.robust.SolveSequence(frames, {});
-  const std::vector<double>& ridge = fx.robust.report().shape_ridge;
+  const SolveResult robust = fx.robust.SolveSequence(frames, {}, {}, &fx.report);
+  const std::vector<double>& ridge = fx.report.shape_ridge;
   ASSERT_EQ(static_cast<int>(ridge.size()), N);
   double used_max = 0;
   std::vector<double> unused;
@@ -185,7 +186,7 @@ TEST_P(RobustSeeds, BadFrameRepeatsThePreviousGoodMesh) {
   }
   frames[2].bundles.clear();  // nothing observed: bad
   const SolveResult result =
-      fx.robust.SolveSequence(frames, {}, {"", "tracking lost", ""});
+      fx.robust.SolveSequence(frames, {}, {"", "tracking lost", ""}, &fx.report);
   ASSERT_TRUE(result.frames[0].ok);
   EXPECT_FALSE(result.frames[1].ok);
   EXPECT_EQ(result.frames[1].reason, "tracking lost");
@@ -222,8 +223,8 @@ TEST_P(RobustSeeds, ThePriorsNoiseIsTheMarkerNoise) {
                       0.05 * wa * wb * da.cwiseProduct(db));
       frames.push_back(fx.Bundles(f + 1, truth.back(), sigma, &rng));
     }
-    const SolveResult robust = fx.robust.SolveSequence(frames, {});
-    const RobustReport& report = fx.robust.report();
+    const SolveResult robust = fx.robust.SolveSequence(frames, {}, {}, &fx.report);
+    const RobustReport& report = fx.report;
     const double e_robust = MeanError(robust, truth);
     const double e_global =
         MeanError(fx.global.SolveSequence(frames, {}), truth);
@@ -260,14 +261,14 @@ TEST_P(RobustSeeds, NoiseFreeBundlesAreReachedAgain) {
                     scale(rng) * fx.actor.shapes[n].displacement);
     frames.push_back(fx.Bundles(static_cast<int>(n) + 1, truth.back(), 0.0, &rng));
   }
-  const SolveResult with = fx.robust.SolveSequence(frames, {});
-  const SolveResult plain = fx_without.robust.SolveSequence(frames, {});
-  EXPECT_GT(fx.robust.report().bundles_interpolated, 0);
-  EXPECT_EQ(fx_without.robust.report().bundles_interpolated, 0);
+  const SolveResult with = fx.robust.SolveSequence(frames, {}, {}, &fx.report);
+  const SolveResult plain = fx_without.robust.SolveSequence(frames, {}, {}, &fx_without.report);
+  EXPECT_GT(fx.report.bundles_interpolated, 0);
+  EXPECT_EQ(fx_without.report.bundles_interpolated, 0);
   const double worst_with = WorstBundleResidual(with);
   const double worst_plain = WorstBundleResidual(plain);
   const double e_with = MeanError(with, truth), e_plain = MeanError(plain, truth);
-  const double tau = fx.robust.report().threshold_mm;
+  const double tau = fx.report.threshold_mm;
   std::printf("seed %d: interpolated %.4f, not %.4f mm mean error; worst "
               "bundle residual %.4f, %.4f mm (threshold %.4f mm)\n",
               GetParam(), e_with, e_plain, worst_with, worst_plain, tau);
@@ -293,11 +294,11 @@ TEST_P(RobustSeeds, ExpressionsBeyondTheDataAreCorrected) {
     truth.push_back(fx.actor.neutral.V + 1.4 * fx.actor.shapes[n].displacement);
     frames.push_back(fx.Bundles(static_cast<int>(n) + 1, truth.back(), 0.0, &rng));
   }
-  const SolveResult robust = fx.robust.SolveSequence(frames, {});
+  const SolveResult robust = fx.robust.SolveSequence(frames, {}, {}, &fx.report);
   const SolveResult lgi = fx.lgi.SolveSequence(frames, {});
   EXPECT_GT(lgi.summary.bundles_projected, 0);
   // ~0 against the noise levels that matter (0.1-1 mm).
-  EXPECT_LT(fx.robust.report().selection_noise_mm, 0.01);
+  EXPECT_LT(fx.report.selection_noise_mm, 0.01);
   const double worst_robust = WorstBundleResidual(robust);
   const double worst_lgi = WorstBundleResidual(lgi);
   EXPECT_LT(worst_robust, 0.5 * worst_lgi);
@@ -317,7 +318,7 @@ TEST_P(RobustSeeds, SameResultForAnyThreadCount) {
         f + 1, fx.actor.ShapePositions(f % fx.actor.shapes.size()), 0.2, &rng));
   }
   ExpectSameMeshesForAnyThreadCount(
-      [&] { return fx.robust.SolveSequence(frames, {}); });
+      [&] { return fx.robust.SolveSequence(frames, {}, {}, &fx.report); });
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, RobustSeeds, ::testing::Values(1, 2, 3));

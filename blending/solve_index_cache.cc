@@ -1,8 +1,11 @@
 #include "blending/solve_index_cache.h"
 
 #include <chrono>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
+
+#include <fmt/format.h>
 
 #include "core/error.h"
 #include "core/file_util.h"
@@ -19,6 +22,23 @@ void LgiBuildOptions::Register(OptionFields* fields) {
 
 std::filesystem::path IndexCachePath(const std::filesystem::path& actor_dir) {
   return actor_dir / "lgi_index.bin";
+}
+
+std::filesystem::path UserCacheRoot() {
+  const char* xdg = std::getenv("XDG_CACHE_HOME");
+  if (xdg && *xdg) return std::filesystem::path(xdg) / "hmc";
+  const char* home = std::getenv("HOME");
+  if (home && *home) return std::filesystem::path(home) / ".cache" / "hmc";
+  return {};
+}
+
+std::filesystem::path UserIndexCachePath(const Actor& actor,
+                                         uint64_t options_hash) {
+  const std::filesystem::path root = UserCacheRoot();
+  if (root.empty()) return {};
+  return root / fmt::format("{:016x}-{:016x}", actor.content_hash,
+                            options_hash) /
+         "lgi_index.bin";
 }
 
 uint64_t IndexOptionsHash(const IndexOptions& index_options,
@@ -75,7 +95,7 @@ std::optional<LgiModel> LoadLgiCache(const std::filesystem::path& path,
                                      const IndexOptions& index_options,
                                      const NaturalNeighbourOptions& nn_options) {
   if (!std::filesystem::exists(path)) {
-    spdlog::info("index cache {}: none, building", path.string());
+    spdlog::info("index cache {}: none", path.string());
     return std::nullopt;
   }
   std::ifstream in(path, std::ios::binary);
@@ -133,19 +153,30 @@ void WriteLgiCache(const std::filesystem::path& path, const LgiModel& model) {
 LgiModel LoadOrBuildLgiModel(const Actor& actor,
                              const IndexOptions& index_options,
                              const NaturalNeighbourOptions& nn_options,
-                             bool write_cache) {
-  if (!actor.dir.empty()) {
-    const auto path = IndexCachePath(actor.dir);
+                             IndexCacheWrite write) {
+  const std::filesystem::path package =
+      actor.dir.empty() ? std::filesystem::path() : IndexCachePath(actor.dir);
+  const std::filesystem::path user = UserIndexCachePath(
+      actor, IndexOptionsHash(index_options, nn_options));
+  for (const auto& path : {package, user}) {
+    if (path.empty()) continue;
     if (auto cached = LoadLgiCache(path, actor, index_options, nn_options)) {
       spdlog::info("index cache {}: loaded", path.string());
       return std::move(*cached);
     }
   }
   LgiModel model = BuildLgiModel(actor, index_options, nn_options);
-  if (write_cache && !actor.dir.empty()) {
-    const auto path = IndexCachePath(actor.dir);
-    WriteLgiCache(path, model);
-    spdlog::info("index cache {}: written", path.string());
+  if (write == IndexCacheWrite::kPackage && !package.empty()) {
+    WriteLgiCache(package, model);
+    spdlog::info("index cache {}: written", package.string());
+  } else if (write == IndexCacheWrite::kUserCache && !user.empty()) {
+    try {
+      EnsureDirectory(user.parent_path());
+      WriteLgiCache(user, model);
+      spdlog::info("index cache {}: written", user.string());
+    } catch (const InputError& e) {
+      spdlog::warn("index cache not written ({}); kept in memory", e.what());
+    }
   }
   return model;
 }

@@ -1,13 +1,23 @@
-// Everything the solve precomputes once per actor (DESIGN.md section 4, step
+// Everything the solve precomputes once per actor (docs/ARCHITECTURE.md, "Method steps",
 // 3: "the index is cached on disk with a version header"): the unskinned
 // shapes, the natural-neighbour weights and the local geometric index, and
 // the versioned binary cache file in the actor package that holds the latter
 // two.
 //
-// Cache file `<actor>/lgi_index.bin`: the ShapeIndex block (magic
-// "HMCLGIX", format version, Actor::content_hash, hash of the index and
-// natural-neighbour options, per-bundle clouds, simplices and grids), then
-// the natural-neighbour weights. Any mismatch or damage means "rebuild".
+// Cache file `lgi_index.bin`: the ShapeIndex block (magic "HMCLGIX", format
+// version, Actor::content_hash, hash of the index and natural-neighbour
+// options, per-bundle clouds, simplices and grids), then the
+// natural-neighbour weights. Any mismatch or damage means "rebuild".
+//
+// Where it lives (docs/formats.md, "Local geometric index cache"): a solve
+// never writes into its input. It reads `<actor>/lgi_index.bin` when present
+// and valid (`hmc index --actor DIR --into_package` puts it there, for
+// packages on read-only shared storage), else the user cache
+// `$XDG_CACHE_HOME/hmc/<actor hash>-<options hash>/lgi_index.bin`
+// ($HOME/.cache when XDG_CACHE_HOME is unset), else builds the model and
+// writes it to the user cache. Writes are atomic (temporary file, then
+// rename), so concurrent jobs on one package at worst both build it and
+// the last rename wins with identical contents.
 #pragma once
 
 #include <filesystem>
@@ -39,7 +49,21 @@ struct LgiModel {
   double build_seconds = 0.0;  // index + weights (0 when loaded)
 };
 
+// Where a build writes the model it had to build.
+enum class IndexCacheWrite {
+  kNone,       // memory only
+  kUserCache,  // the user cache (the solve's default)
+  kPackage,    // the actor package (`hmc index --into_package`)
+};
+
+// <actor_dir>/lgi_index.bin.
 std::filesystem::path IndexCachePath(const std::filesystem::path& actor_dir);
+// $XDG_CACHE_HOME/hmc, else $HOME/.cache/hmc; empty when neither is set.
+std::filesystem::path UserCacheRoot();
+// <UserCacheRoot()>/<actor hash>-<options hash>/lgi_index.bin (16 hex
+// digits each); empty without a user cache root.
+std::filesystem::path UserIndexCachePath(const Actor& actor,
+                                         uint64_t options_hash);
 
 // Hash of the options that change the cached data.
 uint64_t IndexOptionsHash(const IndexOptions& index_options,
@@ -63,11 +87,13 @@ std::optional<LgiModel> LoadLgiCache(const std::filesystem::path& path,
 // Writes the cache atomically.
 void WriteLgiCache(const std::filesystem::path& path, const LgiModel& model);
 
-// Loads the cache when valid, else builds and (if `write_cache` and the
-// actor has a folder) writes it.
+// Loads the package's cache, else the user cache, when valid; else builds
+// the model and writes it where `write` says (a failed write to the user
+// cache is a warning: the model stays in memory). An actor without a folder
+// (in memory) has no package cache.
 LgiModel LoadOrBuildLgiModel(const Actor& actor,
                              const IndexOptions& index_options,
                              const NaturalNeighbourOptions& nn_options,
-                             bool write_cache);
+                             IndexCacheWrite write);
 
 }  // namespace hmc

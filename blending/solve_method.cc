@@ -78,8 +78,12 @@ bool SameInputs(const Memo& memo, const std::vector<BundleFrame>& frames,
 }  // namespace
 
 MethodSolvers::MethodSolvers(const Actor& actor, const MethodOptions& options,
-                             bool write_cache)
-    : actor_(actor), options_(options), write_cache_(write_cache) {}
+                             IndexCacheWrite write_cache)
+    : actor_(actor), options_(options), write_cache_(write_cache) {
+  // One bad-frame threshold for every method (registered once, as solve's).
+  options_.blendshape.min_bundle_fraction = options_.solve.min_bundle_fraction;
+  options_.interp.min_bundle_fraction = options_.solve.min_bundle_fraction;
+}
 
 MethodSolvers::~MethodSolvers() = default;
 

@@ -1,5 +1,5 @@
 // The one place that maps a solve method's name to a sequence solve
-// (DESIGN.md sections 4 and 5), so `hmc solve --method` and `hmc experiment`
+// (docs/ARCHITECTURE.md, "Method steps"; docs/baselines.md), so `hmc solve --method` and `hmc experiment`
 // run every method the same way: the same inputs (actor, bundle frames, jaw
 // poses, per-frame errors) and the same output (SolveResult: one mesh per
 // frame plus FrameSolve diagnostics; bad frames repeat the previous good
@@ -47,7 +47,7 @@ struct MethodOptions {
   bool Check() const;
 };
 
-// The valid method names, in the order of DESIGN.md.
+// The valid method names, in the order of docs/baselines.md.
 const std::vector<std::string>& SolveMethodNames();
 
 // "lgi, blendshape, ..." for help texts and messages.
@@ -59,10 +59,11 @@ void CheckSolveMethod(const std::string& name, const std::string& origin);
 
 class MethodSolvers {
  public:
-  // actor must outlive this object. write_cache: let the lgi model be
-  // written to the actor's index cache when it had to be built.
+  // actor must outlive this object. write_cache: where the lgi model goes
+  // when it had to be built (blending/solve_index_cache.h; never the
+  // package for a solve).
   MethodSolvers(const Actor& actor, const MethodOptions& options,
-                bool write_cache);
+                IndexCacheWrite write_cache);
   ~MethodSolvers();
 
   // Builds what `method` needs (once) without solving.
@@ -88,7 +89,7 @@ class MethodSolvers {
  private:
   const Actor& actor_;
   MethodOptions options_;
-  bool write_cache_ = false;
+  IndexCacheWrite write_cache_ = IndexCacheWrite::kNone;
   std::unique_ptr<LgiModel> lgi_model_;
   std::unique_ptr<ShapeData> data_;  // when no lgi model is needed
   std::unique_ptr<LgiSolver> lgi_;

@@ -84,7 +84,7 @@ TEST_P(EveryMethod, SameContractOnTheSameInputs) {
     }
   }
   const std::vector<std::string> errors = {"", "", "no jaw pose", ""};
-  MethodSolvers solvers(actor, SmallOptions(), /*write_cache=*/false);
+  MethodSolvers solvers(actor, SmallOptions(), IndexCacheWrite::kNone);
   for (const std::string& method : SolveMethodNames()) {
     SCOPED_TRACE(method);
     const SolveResult r = solvers.Solve(method, frames, jaw, errors);
@@ -107,7 +107,7 @@ TEST_P(EveryMethod, SameContractOnTheSameInputs) {
   ASSERT_NE(solvers.lgi_model(), nullptr);
   // lgi-rbf after lgi on the same inputs reuses its choices: same result as
   // on its own.
-  MethodSolvers fresh(actor, SmallOptions(), /*write_cache=*/false);
+  MethodSolvers fresh(actor, SmallOptions(), IndexCacheWrite::kNone);
   const SolveResult alone = fresh.Solve("lgi-rbf", frames, jaw, errors);
   EXPECT_EQ(fresh.last_reused_seconds(), 0.0);
   solvers.Solve("lgi", frames, jaw, errors);

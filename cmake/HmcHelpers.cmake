@@ -33,15 +33,21 @@ function(hmc_add_library)
   endif()
 endfunction()
 
-# hmc_add_test(NAME <target> SOURCES ... [DEPS ...])
+# hmc_add_test(NAME <target> SOURCES ... [DEPS ...] [LABELS ...])
+# LABELS: CTest labels of every test of the binary; `slow` ones are left out
+# of the sanitizer run of scripts/test (the Release run has them all).
 function(hmc_add_test)
-  cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SOURCES})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   hmc_target_common(${ARG_NAME})
+  set(properties ENVIRONMENT "HMC_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+  if(ARG_LABELS)
+    list(APPEND properties LABELS "${ARG_LABELS}")
+  endif()
   gtest_discover_tests(${ARG_NAME}
     WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
-    PROPERTIES ENVIRONMENT "HMC_SOURCE_DIR=${PROJECT_SOURCE_DIR}"
+    PROPERTIES ${properties}
     DISCOVERY_TIMEOUT 120)
 endfunction()
 

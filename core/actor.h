@@ -1,4 +1,4 @@
-// The actor package (DESIGN.md section 3): a folder a studio can assemble
+// The actor package (docs/formats.md): a folder a studio can assemble
 // from OBJs, loaded into millimetres in head space. Format: docs/formats.md.
 #pragma once
 

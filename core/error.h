@@ -1,4 +1,4 @@
-// Three levels of failure (STYLE.md "Errors"):
+// Three levels of failure (docs/ARCHITECTURE.md, "Contracts"):
 //  - HMC_CHECK: a broken internal invariant; logs and aborts.
 //  - InputError: bad input or a broken API precondition; carries the file,
 //    the line (0 = whole file) and a human message. `main` prints it as one

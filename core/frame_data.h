@@ -1,4 +1,4 @@
-// Per-frame data passed between stages as CSV (DESIGN.md section 7):
+// Per-frame data passed between stages as CSV (docs/formats.md):
 //   bundles.csv  frame,marker,x,y,z   (mm, head space; a missing marker has
 //                                       no row)
 //   jaw.csv      frame,open_deg,lateral_deg,protrude_mm

@@ -1,4 +1,4 @@
-// Mesh sequences (DESIGN.md section 7): one topology, many frames of vertex
+// Mesh sequences (docs/formats.md): one topology, many frames of vertex
 // positions. Formats, chosen by extension:
 //   .pc2   Blender / 3ds Max point cache (float32, little endian)
 //   .mdd   LightWave / Blender MDD (float32, big endian, with frame times)

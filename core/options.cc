@@ -24,23 +24,64 @@ T ParseScalar(const YAML::Node& node, const std::string& key,
   }
 }
 
+template <typename T>
+T ParseValue(const YAML::Node& node, const std::string& name,
+             const std::filesystem::path& file, int line) {
+  if (!node.IsScalar()) {
+    ThrowInputError(file, line, "option '{}' must be a single value", name);
+  }
+  T value = ParseScalar<T>(node, name, file, line);
+  if constexpr (std::is_same_v<T, double>) {
+    if (!std::isfinite(value)) {
+      ThrowInputError(file, line, "option '{}' is not finite", name);
+    }
+  }
+  return value;
+}
+
+template <typename>
+struct IsVector : std::false_type {};
+template <typename T>
+struct IsVector<std::vector<T>> : std::true_type {};
+
+// A list: a YAML sequence of scalars, or one scalar of comma-separated
+// items (items trimmed of blanks; empty items skipped).
+template <typename T>
+std::vector<T> ParseList(const YAML::Node& node, const std::string& name,
+                         const std::filesystem::path& file, int line) {
+  std::vector<T> out;
+  if (node.IsSequence()) {
+    for (const auto& item : node) {
+      out.push_back(ParseValue<T>(item, name, file, line));
+    }
+    return out;
+  }
+  if (!node.IsScalar()) {
+    ThrowInputError(file, line, "option '{}' must be a list", name);
+  }
+  std::stringstream ss(node.Scalar());
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const size_t a = item.find_first_not_of(" \t");
+    const size_t b = item.find_last_not_of(" \t");
+    if (a == std::string::npos) continue;
+    out.push_back(
+        ParseValue<T>(YAML::Node(item.substr(a, b - a + 1)), name, file, line));
+  }
+  return out;
+}
+
 void AssignFromNode(const OptionFields::Field& field, const YAML::Node& node,
                     const std::filesystem::path& file, int line) {
-  if (!node.IsScalar()) {
-    ThrowInputError(file, line, "option '{}' must be a single value",
-                    field.name);
-  }
   std::visit(
       [&](auto* pointer) {
         using T = std::remove_pointer_t<decltype(pointer)>;
-        T value = ParseScalar<T>(node, field.name, file, line);
-        if constexpr (std::is_same_v<T, double>) {
-          if (!std::isfinite(value)) {
-            ThrowInputError(file, line, "option '{}' is not finite",
-                            field.name);
-          }
+        if constexpr (IsVector<T>::value) {
+          *pointer = ParseList<typename T::value_type>(node, field.name, file,
+                                                      line);
+        } else {
+          *pointer = ParseValue<T>(node, field.name, file, line);
         }
-        *pointer = value;
       },
       field.pointer);
 }
@@ -95,6 +136,14 @@ void OptionFields::Add(const std::string& name, std::string* field,
                        std::string help) {
   AddField(name, field, std::move(help));
 }
+void OptionFields::Add(const std::string& name, std::vector<double>* field,
+                       std::string help) {
+  AddField(name, field, std::move(help));
+}
+void OptionFields::Add(const std::string& name,
+                       std::vector<std::string>* field, std::string help) {
+  AddField(name, field, std::move(help));
+}
 
 const OptionFields::Field* OptionFields::Find(const std::string& name) const {
   for (const auto& field : fields_) {
@@ -132,7 +181,8 @@ void OptionFields::Set(const std::string& name, const std::string& value,
   } catch (const YAML::Exception&) {
     node = YAML::Node(value);
   }
-  if (std::holds_alternative<std::string*>(field->pointer)) {
+  if (std::holds_alternative<std::string*>(field->pointer) ||
+      std::holds_alternative<std::vector<std::string>*>(field->pointer)) {
     node = YAML::Node(value);  // Strings are taken verbatim.
   }
   AssignFromNode(*field, node, origin, 0);
@@ -148,6 +198,8 @@ std::string OptionFields::ValueString(const Field& field) const {
           return *pointer;
         } else if constexpr (std::is_same_v<T, double>) {
           return fmt::format("{}", *pointer);  // Shortest round-trip form.
+        } else if constexpr (IsVector<T>::value) {
+          return fmt::format("{}", fmt::join(*pointer, ","));
         } else {
           return std::to_string(*pointer);
         }
@@ -166,7 +218,15 @@ YAML::Node OptionFields::ToYaml() const {
       node.reset(child);
       rest = rest.substr(dot + 1);
     }
-    std::visit([&](auto* pointer) { node[rest] = *pointer; }, field.pointer);
+    std::visit(
+        [&](auto* pointer) {
+          using T = std::remove_pointer_t<decltype(pointer)>;
+          node[rest] = *pointer;
+          if constexpr (IsVector<T>::value) {
+            node[rest].SetStyle(YAML::EmitterStyle::Flow);
+          }
+        },
+        field.pointer);
   }
   return root;
 }

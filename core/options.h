@@ -1,11 +1,25 @@
 // One field registry per options struct drives the YAML config, the CLI
 // flags and the `options_used.yaml` written next to each output
-// (STYLE.md "Stage contract"). Defaults live only in the options header,
+// (docs/ARCHITECTURE.md, "Contracts"). Defaults live only in the options header,
 // as default member initialisers; the registry only points at the fields.
 //
 // An options struct provides
 //   void Register(OptionFields* fields);   // fields->Add("name", &name_, "help (unit)")
 //   bool Check() const;                     // logs the offending option
+// and writes Check() with the CHECK_OPTION macros below (as COLMAP does):
+//   bool Check() const {
+//     CHECK_OPTION_GE(tolerance_mm, 0.0);
+//     CHECK_OPTION_IN(fraction, 0.0, 1.0);
+//     CHECK_OPTION(!methods.empty());
+//     return true;
+//   }
+// Each logs the failed condition with the option's value and makes Check()
+// return false. NaN fails every comparison.
+//
+// Value types: double, int, bool, text, and lists of numbers or of text. A
+// list is a YAML sequence in a config (`noise_mm: [0, 0.5, 1]`) and comma
+// separated on the command line (`--noise_mm 0,0.5,1`); options_used.yaml
+// writes it as a sequence.
 // Field names are snake_case; a group ("index", "blend") nests them in YAML
 // (`index: {min_volume: ...}`) and prefixes the CLI flag (`--index.min_volume`).
 #pragma once
@@ -16,13 +30,20 @@
 #include <variant>
 #include <vector>
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
+
+#include "core/error.h"
 
 namespace hmc {
 
 class OptionFields {
  public:
-  using Pointer = std::variant<double*, int*, bool*, std::string*>;
+  using Pointer = std::variant<double*, int*, bool*, std::string*,
+                               std::vector<double>*,
+                               std::vector<std::string>*>;
   struct Field {
     std::string name;  // "group.name" or "name"
     std::string help;
@@ -36,6 +57,10 @@ class OptionFields {
   void Add(const std::string& name, int* field, std::string help);
   void Add(const std::string& name, bool* field, std::string help);
   void Add(const std::string& name, std::string* field, std::string help);
+  void Add(const std::string& name, std::vector<double>* field,
+           std::string help);
+  void Add(const std::string& name, std::vector<std::string>* field,
+           std::string help);
 
   // Sets fields from a YAML mapping (nested by group). Unknown keys, wrong
   // types and non-finite numbers throw InputError naming `file` and the line.
@@ -59,6 +84,48 @@ class OptionFields {
   std::string group_;
   std::vector<Field> fields_;
 };
+
+// The CHECK_OPTION helpers for Check() bodies (see the top of this file).
+#define CHECK_OPTION(condition)                                          \
+  do {                                                                   \
+    if (!(condition)) {                                                  \
+      spdlog::error("invalid option: {} does not hold", #condition);     \
+      return false;                                                      \
+    }                                                                    \
+  } while (0)
+#define HMC_CHECK_OPTION_OP(op, a, b)                                    \
+  do {                                                                   \
+    if (!((a)op(b))) {                                                   \
+      spdlog::error("invalid option: {} = {} must be {} {}", #a, (a), #op, \
+                    (b));                                                \
+      return false;                                                      \
+    }                                                                    \
+  } while (0)
+#define CHECK_OPTION_EQ(a, b) HMC_CHECK_OPTION_OP(==, a, b)
+#define CHECK_OPTION_NE(a, b) HMC_CHECK_OPTION_OP(!=, a, b)
+#define CHECK_OPTION_LT(a, b) HMC_CHECK_OPTION_OP(<, a, b)
+#define CHECK_OPTION_LE(a, b) HMC_CHECK_OPTION_OP(<=, a, b)
+#define CHECK_OPTION_GT(a, b) HMC_CHECK_OPTION_OP(>, a, b)
+#define CHECK_OPTION_GE(a, b) HMC_CHECK_OPTION_OP(>=, a, b)
+// lo <= a <= hi (closed interval).
+#define CHECK_OPTION_IN(a, lo, hi)                                       \
+  do {                                                                   \
+    if (!((a) >= (lo) && (a) <= (hi))) {                                 \
+      spdlog::error("invalid option: {} = {} must be in [{}, {}]", #a,   \
+                    (a), (lo), (hi));                                    \
+      return false;                                                      \
+    }                                                                    \
+  } while (0)
+
+// Throws InputError if options.Check() fails (Check logs the reason): how a
+// stage's entry point refuses invalid options.
+template <typename Options>
+void RequireValid(const Options& options, const char* what) {
+  if (!options.Check()) {
+    throw InputError(std::string("invalid ") + what +
+                     " options (see the message above)");
+  }
+}
 
 // Writes fields.ToYaml() to `file` atomically.
 void WriteOptionsUsed(const OptionFields& fields,

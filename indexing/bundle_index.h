@@ -1,5 +1,5 @@
 // One bundle's piece of the local geometric index (paper, "Local Geometric
-// Indexing" and "Tetrahedralization"; DESIGN.md section 4, steps 2-5): its
+// Indexing" and "Tetrahedralization"; docs/ARCHITECTURE.md, "Method steps", 2-5): its
 // point cloud, the overlapping non-manifold tetrahedra over it, and a uniform
 // grid listing the simplices overlapping each cell (Fujimoto et al. 1988,
 // "ARTS: accelerated ray-tracing system"; Pharr & Humphreys 2010).

@@ -249,7 +249,14 @@ TEST(BundleIndex, PruningRespectsQualityAndExtent) {
     }
   }
   EXPECT_EQ(index.stats().tets_candidate, 210);
-  EXPECT_LE(index.stats().tets_kept, 210);
+  // The thresholds prune: the same cloud without them keeps more, and
+  // every tetrahedron kept with them is one that passes both.
+  IndexOptions loose = MechanicsOptions();
+  loose.min_tet_quality = 0.0;
+  loose.max_edge_mm = 1e9;
+  const BundleIndex unpruned = RandomIndex(3, 10, loose);
+  EXPECT_GT(index.stats().tets_kept, 0);
+  EXPECT_LT(index.stats().tets_kept, unpruned.stats().tets_kept);
 }
 
 TEST(BundleIndex, WriteReadRoundTrip) {

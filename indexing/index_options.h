@@ -1,4 +1,4 @@
-// Options of the local geometric index (DESIGN.md section 4, steps 1-5).
+// Options of the local geometric index (docs/ARCHITECTURE.md, "Method steps", 1-5).
 #pragma once
 
 #include "core/options.h"

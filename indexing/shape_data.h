@@ -1,4 +1,4 @@
-// The dataset as the index and the solve see it (DESIGN.md section 4, steps
+// The dataset as the index and the solve see it (docs/ARCHITECTURE.md, "Method steps", steps
 // 1 and 8): shapes unskinned by their own jaw pose, b*_n = T(theta_n)^-1
 // (x0 + b_n) - x0 (paper, "Jaw Articulation"), both per vertex (for the
 // blend) and at every bundle's surface point (for the point clouds and the

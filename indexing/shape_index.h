@@ -1,4 +1,4 @@
-// The local geometric index of an actor (DESIGN.md section 4, steps 1-3):
+// The local geometric index of an actor (docs/ARCHITECTURE.md, "Method steps", 1-3):
 // one point cloud per bundle, pruned and merged, with its non-manifold
 // tetrahedra and grid (BundleIndex). Built once per actor and cached.
 #pragma once

@@ -13,7 +13,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
-#include "blending/eval_metrics.h"
+#include "eval/eval_metrics.h"
 #include "core/actor.h"
 #include "core/calibration.h"
 #include "core/error.h"

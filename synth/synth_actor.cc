@@ -390,6 +390,20 @@ void CheckActorMatchesModel(const Actor& actor, const FaceModel& model,
   }
 }
 
+SynthPackage::SynthPackage() = default;
+SynthPackage::SynthPackage(SynthPackage&&) noexcept = default;
+SynthPackage::~SynthPackage() = default;
+
+SynthPackage LoadSynthPackage(const std::filesystem::path& dir) {
+  SynthPackage p;
+  p.synth_file = dir / kSynthOptionsFile;
+  p.options = ReadSynthActorOptions(dir);
+  p.actor = LoadActor(dir);
+  p.model = std::make_unique<FaceModel>(p.options);
+  CheckActorMatchesModel(p.actor, *p.model, kSynthPackageToleranceMm);
+  return p;
+}
+
 Actor SynthesizeActor(const SynthActorOptions& options) {
   if (!options.Check()) {
     throw InputError("invalid synthetic actor options (see the message above)");

@@ -1,10 +1,11 @@
-// The synthetic actor (DESIGN.md section 6): a procedural, UV-parameterised
+// The synthetic actor (docs/synthetic.md): a procedural, UV-parameterised
 // face, a painted-marker layout, a jaw rig, FACS-like action units with
 // nonlinear fine detail, and a dataset of shapes built from them.
 // Deterministic by seed. How it is made: docs/synthetic.md.
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,26 @@ SynthActorOptions ReadSynthActorOptions(const std::filesystem::path& actor_dir);
 // package is what the generator makes, not edited or stale.
 void CheckActorMatchesModel(const Actor& actor, const FaceModel& model,
                             double tolerance_mm);
+
+// How far a package's neutral may be from the regenerated one: WriteActor's
+// 9 significant digits on coordinates of ~100 mm give ~1e-7 mm.
+constexpr double kSynthPackageToleranceMm = 1e-4;
+
+// A synthetic actor package as the harness commands (`hmc actor frames`,
+// `hmc synth shot`, `hmc experiment`) use it: the generator options of its
+// synth.yaml (read first: a package without it fails before the slow load),
+// the loaded package, and the generator rebuilt from the options, checked
+// against the package (CheckActorMatchesModel, kSynthPackageToleranceMm).
+struct SynthPackage {
+  SynthPackage();
+  SynthPackage(SynthPackage&&) noexcept;
+  ~SynthPackage();  // FaceModel is complete only in synth_actor.cc
+  SynthActorOptions options;
+  Actor actor;
+  std::unique_ptr<FaceModel> model;
+  std::filesystem::path synth_file;  // dir / synth.yaml
+};
+SynthPackage LoadSynthPackage(const std::filesystem::path& dir);
 
 // The whole synthetic actor as an in-memory package (mm, head space).
 // Throws InputError if !options.Check().

@@ -1,5 +1,5 @@
 // Ground-truth test material from the synthetic actor's generator
-// (DESIGN.md section 6, `hmc actor frames`): activation sequences that the
+// (docs/synthetic.md, `hmc actor frames`): activation sequences that the
 // dataset never contains (random combinations, an animated performance,
 // combinations of held-out units alone or mixed with dataset units), or the
 // dataset's own shapes for verification, evaluated to truth meshes, jaw

@@ -1,4 +1,4 @@
-#include "blending/eval_metrics.h"
+#include "eval/eval_metrics.h"
 
 #include <fmt/format.h>
 
@@ -131,6 +131,25 @@ SequenceMetrics SequenceEvaluator::Evaluate(
   out.flicker_face = ComputeFlicker(truth, recon, face_mask, {});
   out.flicker_all = ComputeFlicker(truth, recon, {}, {});
   return out;
+}
+
+nlohmann::json StatsJson(const ErrorStats& s) {
+  return {{"count", s.count},
+          {"mean_mm", s.mean},
+          {"rms_mm", s.rms},
+          {"p95_mm", s.p95},
+          {"max_mm", s.max}};
+}
+
+nlohmann::json PooledMetricsJson(const SequenceMetrics& m) {
+  return {{"face", StatsJson(m.face)},
+          {"all", StatsJson(m.all)},
+          {"bundle", StatsJson(m.bundle)},
+          {"detail_face_mm", m.detail_face},
+          {"detail_all_mm", m.detail_all},
+          {"flicker_face_mm_per_frame2", m.flicker_face.mean},
+          {"flicker_all_mm_per_frame2", m.flicker_all.mean},
+          {"flicker_frames_used", m.flicker_all.frames_used}};
 }
 
 }  // namespace hmc

@@ -1,4 +1,4 @@
-#include "blending/eval_metrics.h"
+#include "eval/eval_metrics.h"
 
 #include <gtest/gtest.h>
 

@@ -13,6 +13,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "core/actor.h"
 #include "core/flicker.h"
 #include "core/frame_data.h"
@@ -65,5 +67,12 @@ class SequenceEvaluator {
   std::vector<uint8_t> face_;
   Eigen::SparseMatrix<double> laplacian_;
 };
+
+// The JSON of one statistic, {count, mean_mm, rms_mm, p95_mm, max_mm}, and
+// of a sequence's pooled metrics (face, all, bundle, detail_*_mm,
+// flicker_*): the keys of eval.json's "overall" and of each results.json row
+// (docs/formats.md).
+nlohmann::json StatsJson(const ErrorStats& s);
+nlohmann::json PooledMetricsJson(const SequenceMetrics& m);
 
 }  // namespace hmc

@@ -1,4 +1,4 @@
-// The picture options `hmc eval` and `hmc experiment` share: truth |
+// The picture options `hmc eval` and `hmc experiment` share (eval/error_pictures.h): truth |
 // reconstruction | error heat-map panels rendered by hmc (core/render_mesh.h)
 // with a colour bar. Registered at the caller's level, so the keys are
 // image_width, image_height, heat_max_mm, color_map.

@@ -1,0 +1,139 @@
+// What every solver returns per frame and per sequence (the lgi solve, the
+// robust default and the baselines alike: blending/solve_method.h), and the
+// two steps of the sequence driver (core/frame_sequence.h) they share:
+// marking the frames known to be bad, and filling every bad frame's mesh
+// from the previous good one (docs/ARCHITECTURE.md, "Sequence driver").
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "core/frame_data.h"
+#include "core/frame_sequence.h"
+#include "core/jaw.h"
+#include "core/mesh.h"
+
+namespace hmc {
+
+// One bundle in one frame.
+struct BundleSolve {
+  enum class Status { kInside, kProjected, kFilled, kUnused };
+  Status status = Status::kUnused;
+  Vec3 observed = Vec3::Zero();  // head space (when observed)
+  double distance = 0.0;  // how far the unskinned bundle was projected (mm)
+  int num_candidates = 0;
+  int simplex = -1;                  // chosen simplex of its index
+  std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
+  std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
+                                                // shape, neutral omitted
+  double cost = 0.0;         // neighbour criterion of the choice (mm^2)
+  double residual = 0.0;     // |output surface at s_k - observed| (mm)
+};
+
+struct FrameSolve {
+  int frame = 0;
+  bool ok = false;
+  std::string reason;  // why a bad frame was skipped
+  JawPose jaw;
+  std::vector<BundleSolve> bundles;  // K, in marker order
+  int unknown_markers = 0;           // names not in the actor (ignored)
+};
+
+// How every solver (lgi and the baselines) starts a frame: a FrameSolve
+// with one BundleSolve per marker, the observed position of each bundle
+// named in `bundles` (marker_index: name -> marker), unknown names counted.
+// Returns K flags: which markers were observed.
+std::vector<char> BeginFrame(
+    const BundleFrame& bundles, const JawPose& jaw,
+    const std::unordered_map<std::string, int>& marker_index, int num_bundles,
+    FrameSolve* frame);
+
+// Fewest observed bundles a frame needs: ceil(min_fraction * K), at least 1.
+int BundlesNeeded(double min_fraction, int num_bundles);
+
+struct SolveSummary {
+  int frames = 0;
+  int bad_frames = 0;
+  int64_t bundles_inside = 0;
+  int64_t bundles_projected = 0;
+  int64_t bundles_filled = 0;
+  double max_projection = 0.0;  // mm
+  // Adds the frame's bundles to the counts by status.
+  void Count(const FrameSolve& frame);
+  std::string BriefReport() const;
+};
+
+// A method's own report of one sequence solve, returned with the result (as
+// Ceres returns a Summary) so it lands in `hmc solve --diagnostics`: named
+// numbers in the method's order (units in the names) and one line.
+// Empty for the methods that have nothing beyond SolveSummary.
+struct MethodReport {
+  std::vector<std::pair<std::string, double>> values;
+  std::string brief;
+};
+
+struct SolveResult {
+  std::vector<MatX3d> meshes;  // one V x 3 mesh per input frame (mm)
+  std::vector<FrameSolve> frames;
+  SolveSummary summary;
+  MethodReport report;
+};
+
+// A solve's input over a dense frame range, so the output stays aligned
+// with frame numbers: one entry per frame number from the first to the last
+// of bundles.csv. A frame without rows ("no bundles in this frame") or, when
+// a jaw file is given, without a jaw pose ("no jaw pose for this frame in
+// <jaw_name>") is marked bad by its frame_errors entry.
+struct DenseSequence {
+  int first_frame = 0;
+  std::vector<BundleFrame> frames;
+  std::vector<JawPose> jaw;  // the zero pose without a jaw file
+  std::vector<std::string> frame_errors;  // empty string: not known bad
+};
+// rows: bundles.csv's frames, sorted by frame number, not empty; jaw:
+// jaw.csv's rows, or nullptr without a jaw file.
+DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
+                                const std::vector<JawFrame>* jaw,
+                                const std::string& jaw_name);
+
+// Step 1 of the sequence driver for a solver: result->frames gets one
+// FrameSolve per frame; solve(int f, const JawPose& pose, FrameSolve* out)
+// fills frame f's (pose: jaw[f], the zero pose when jaw is empty) unless
+// frame_errors (empty or one per frame) marks it bad; then it is a
+// FrameSolve with that reason and num_bundles unused bundles. In frame
+// order, one at a time, so `solve` may look at earlier frames' records.
+template <typename Solve>
+void SolveFrames(const std::vector<BundleFrame>& frames,
+                 const std::vector<JawPose>& jaw,
+                 const std::vector<std::string>& frame_errors, int num_bundles,
+                 const std::string& progress_label, Solve&& solve,
+                 SolveResult* result) {
+  HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
+  const int F = static_cast<int>(frames.size());
+  std::vector<FrameSolve>& out = result->frames;
+  out.assign(F, FrameSolve());
+  auto pose = [&](int f) { return jaw.empty() ? JawPose() : jaw[f]; };
+  VisitFrames(
+      F, frame_errors, progress_label,
+      [&](int f) { solve(f, pose(f), &out[f]); },
+      [&](int f, const std::string& reason) {
+        FrameSolve& bad = out[f];
+        bad.frame = frames[f].frame;
+        bad.jaw = pose(f);
+        bad.bundles.resize(num_bundles);
+        bad.reason = reason;
+      });
+}
+
+// Step 2: every bad frame's mesh (result->frames[f].ok false) repeats the
+// previous good frame's mesh; before the first good frame, the neutral
+// skinned with the frame's jaw pose (rig: the actor's jaw rig, or nullptr).
+// Logs each bad frame with its reason; sets result->summary.bad_frames.
+// result->meshes: one per frame, the good ones filled.
+void FillBadMeshes(const TriMesh& neutral, const JawRig* rig,
+                   SolveResult* result);
+
+}  // namespace hmc
