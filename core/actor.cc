@@ -65,7 +65,7 @@ Eigen::VectorXd ParseJawWeights(std::string_view text, const fs::path& file,
     const std::string_view trimmed = Trim(content);
     if (trimmed.empty() || trimmed[0] == '#') return;
     double w = 0;
-    if (!ParseNumber(trimmed, &w)) {
+    if (!ParseDouble(trimmed, &w)) {
       ThrowInputError(file, line, "'{}' is not a number (one weight per line)",
                       trimmed);
     }

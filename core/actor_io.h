@@ -15,6 +15,7 @@
 
 #include "core/actor.h"
 #include "core/obj_io.h"
+#include "core/text.h"
 
 namespace hmc::actor_io {
 
@@ -50,36 +51,8 @@ uint64_t CombineHash(uint64_t hash, const std::string& name, uint64_t file_hash)
 // columns and YAML keys downstream: keep them to a safe alphabet (kNameRule).
 bool IsValidName(const std::string& name);
 
-// Text helpers of the readers.
-std::string_view Trim(std::string_view s);
-std::vector<std::string_view> SplitWhitespace(std::string_view s);
-// The whole token is one number (a leading '+' allowed).
-bool ParseNumber(std::string_view token, double* value);
-bool ParseInteger(std::string_view token, long long* value);
-// Lines of a text file with their 1-based numbers; strips a UTF-8 BOM and
-// '\r'.
-template <typename Body>
-void ForEachLine(std::string_view text, const Body& body) {
-  if (text.size() >= 3 && std::memcmp(text.data(), "\xEF\xBB\xBF", 3) == 0) {
-    text.remove_prefix(3);
-  }
-  int line = 0;
-  size_t pos = 0;
-  while (pos < text.size()) {
-    ++line;
-    size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view content = text.substr(pos, end - pos);
-    if (!content.empty() && content.back() == '\r') content.remove_suffix(1);
-    body(line, content);
-    pos = end + 1;
-  }
-}
-
-// One CSV record (RFC 4180 quoting, as spreadsheets write it) of one line;
-// fields trimmed. Throws InputError (file, line) for an unterminated quote.
-std::vector<std::string> SplitCsv(std::string_view line,
-                                  const fs::path& file, int line_number);
+// Text helpers of the readers: core/text.h (Trim, SplitWhitespace,
+// ParseDouble, ParseInteger, ForEachLine, SplitCsvRecord).
 
 // actor.yaml as written (paths relative to the package, file units).
 struct ShapeEntry {

@@ -108,7 +108,7 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
   ForEachLine(text, [&](int line, std::string_view content) {
     const std::string_view trimmed = Trim(content);
     if (trimmed.empty() || trimmed[0] == '#') return;
-    const std::vector<std::string> fields = SplitCsv(content, file, line);
+    const std::vector<std::string> fields = SplitCsvRecord(content, file, line);
     if (!have_header) {
       for (size_t i = 0; i < fields.size(); ++i) {
         int column = -1;
@@ -203,7 +203,7 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
       std::vector<double> weights;
       for (const std::string_view token : SplitWhitespace(weights_field)) {
         double w = 0;
-        if (!ParseNumber(token, &w) || !std::isfinite(w)) {
+        if (!ParseDouble(token, &w) || !std::isfinite(w)) {
           ThrowInputError(file, line,
                           "marker '{}': weight '{}' is not a finite number",
                           marker.name, token);

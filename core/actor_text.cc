@@ -1,6 +1,5 @@
 #include "core/actor_io.h"
 
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <exception>
@@ -65,76 +64,5 @@ bool IsValidName(const std::string& name) {
 }
 
 
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' ||
-                        s.front() == '\r')) {
-    s.remove_prefix(1);
-  }
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' ||
-                        s.back() == '\r')) {
-    s.remove_suffix(1);
-  }
-  return s;
-}
-
-std::vector<std::string_view> SplitWhitespace(std::string_view s) {
-  std::vector<std::string_view> parts;
-  size_t i = 0;
-  while (i < s.size()) {
-    while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
-    const size_t start = i;
-    while (i < s.size() && s[i] != ' ' && s[i] != '\t') ++i;
-    if (i > start) parts.push_back(s.substr(start, i - start));
-  }
-  return parts;
-}
-
-bool ParseNumber(std::string_view token, double* value) {
-  const char* begin = token.data();
-  const char* end = begin + token.size();
-  if (begin < end && *begin == '+') ++begin;
-  if (begin == end) return false;
-  const auto [ptr, error] = std::from_chars(begin, end, *value);
-  return error == std::errc() && ptr == end;
-}
-
-bool ParseInteger(std::string_view token, long long* value) {
-  const char* begin = token.data();
-  const char* end = begin + token.size();
-  if (begin < end && *begin == '+') ++begin;
-  if (begin == end) return false;
-  const auto [ptr, error] = std::from_chars(begin, end, *value);
-  return error == std::errc() && ptr == end;
-}
-
-// One CSV record (RFC 4180 quoting, as spreadsheets write it) of one line.
-std::vector<std::string> SplitCsv(std::string_view line,
-                                  const fs::path& file, int line_number) {
-  std::vector<std::string> fields(1);
-  bool quoted = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (quoted) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        fields.back() += '"';
-        ++i;
-      } else if (c == '"') {
-        quoted = false;
-      } else {
-        fields.back() += c;
-      }
-    } else if (c == '"') {
-      quoted = true;
-    } else if (c == ',') {
-      fields.emplace_back();
-    } else {
-      fields.back() += c;
-    }
-  }
-  if (quoted) ThrowInputError(file, line_number, "unterminated quoted field");
-  for (std::string& field : fields) field = std::string(Trim(field));
-  return fields;
-}
 
 }  // namespace hmc::actor_io

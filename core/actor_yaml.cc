@@ -81,7 +81,7 @@ std::string GetString(const YAML::Node& node, const fs::path& file,
 double GetNumber(const YAML::Node& node, const fs::path& file,
                  const char* what) {
   double value = 0;
-  if (!node.IsScalar() || !ParseNumber(Trim(node.Scalar()), &value)) {
+  if (!node.IsScalar() || !ParseDouble(Trim(node.Scalar()), &value)) {
     // yaml-cpp's as<double>() would also take ".nan" and ".inf"; the
     // package wants plain finite numbers only.
     FailAt(file, node, "{} must be a number, got '{}'", what,

@@ -1,6 +1,5 @@
 #include "core/obj_io.h"
 
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -10,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/text.h"
 
 namespace hmc {
 namespace {
@@ -24,17 +24,6 @@ std::string_view NextToken(const char*& p, const char* end) {
   const char* start = p;
   while (p < end && !IsBlank(*p)) ++p;
   return std::string_view(start, static_cast<size_t>(p - start));
-}
-
-// Whole-token number parse; from_chars is locale-independent and exact, and
-// (unlike strtod) needs no NUL-terminated copy of the token.
-bool ParseDouble(std::string_view token, double* value) {
-  const char* begin = token.data();
-  const char* end = begin + token.size();
-  if (begin < end && *begin == '+') ++begin;
-  if (begin == end) return false;
-  const auto [ptr, error] = std::from_chars(begin, end, *value);
-  return error == std::errc() && ptr == end;
 }
 
 // Statements of the OBJ specification that carry nothing hmc uses: normals
