@@ -1,0 +1,216 @@
+#include "tracking/dot_detector.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+namespace hmc {
+
+void DotDetectorOptions::Register(OptionFields* fields) {
+  fields->Add("polarity", &polarity, "dark (paint darker than the skin) | bright");
+  fields->Add("dot_size_px", &dot_size_px,
+              "expected dot diameter (px; 0 = measured at the reference frame)");
+  fields->Add("min_contrast", &min_contrast,
+              "relative darkening (or brightening) of a dot pixel vs the local mean");
+  fields->Add("min_step", &min_step,
+              "smallest absolute darkening of a dot pixel (fraction of full scale)");
+  fields->Add("min_size", &min_size, "smallest equivalent diameter (fraction of the expected)");
+  fields->Add("max_size", &max_size, "largest equivalent diameter (fraction of the expected)");
+  fields->Add("max_elongation", &max_elongation, "largest ratio of the second-moment axes");
+  fields->Add("min_fill", &min_fill, "smallest fraction of the bounding box covered");
+  fields->Add("background_scale", &background_scale, "box of the local mean (dot diameters)");
+  fields->Add("border_px", &border_px, "clearance from the image border (px)");
+}
+
+bool DotDetectorOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const char* what) {
+    spdlog::error("detect options: {}", what);
+    ok = false;
+  };
+  if (polarity != "dark" && polarity != "bright") fail("polarity must be dark or bright");
+  if (!(dot_size_px == 0 || (dot_size_px >= 1.5 && dot_size_px <= 40))) {
+    fail("dot_size_px must be 0 or in [1.5, 40]");
+  }
+  if (!(min_contrast > 0 && min_contrast < 1)) fail("min_contrast must be in (0, 1)");
+  if (!(min_step >= 0 && min_step < 1)) fail("min_step must be in [0, 1)");
+  if (!(min_size > 0 && min_size < 1 && max_size > 1)) fail("need 0 < min_size < 1 < max_size");
+  if (!(max_elongation >= 1)) fail("max_elongation must be >= 1");
+  if (!(min_fill >= 0 && min_fill < 1)) fail("min_fill must be in [0, 1)");
+  if (!(background_scale >= 2)) fail("background_scale must be >= 2");
+  if (border_px < 0) fail("border_px must be >= 0");
+  return ok;
+}
+
+namespace {
+
+cv::Mat AsFloat(const cv::Mat& grey) {
+  if (grey.type() == CV_32F) return grey;
+  cv::Mat out;
+  grey.convertTo(out, CV_32F, grey.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
+  return out;
+}
+
+struct Refined {
+  bool ok = false;
+  Vec2 centre = Vec2::Zero();
+  double contrast = 0;
+  double elongation = 1;
+};
+
+// Background plane on an annulus, then the iterated centroid of the
+// relative darkening (file comment, step 3). sign = +1 dark, -1 bright.
+Refined RefineCentre(const cv::Mat& image, Vec2 centre, double radius, double sign) {
+  Refined out;
+  const double r_in = radius + 1.5, r_out = radius + 3.5;
+  const double window = radius + 1.0;
+  for (int iteration = 0; iteration < 3; ++iteration) {
+    const int x0 = static_cast<int>(std::floor(centre.x() - r_out));
+    const int x1 = static_cast<int>(std::ceil(centre.x() + r_out));
+    const int y0 = static_cast<int>(std::floor(centre.y() - r_out));
+    const int y1 = static_cast<int>(std::ceil(centre.y() + r_out));
+    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return out;
+    std::vector<float> ring;
+    std::vector<Eigen::Vector3d> ring_points;
+    for (int y = y0; y <= y1; ++y) {
+      const float* row = image.ptr<float>(y);
+      for (int x = x0; x <= x1; ++x) {
+        const double d = std::hypot(x - centre.x(), y - centre.y());
+        if (d >= r_in && d <= r_out) {
+          ring.push_back(row[x]);
+          ring_points.emplace_back(x - centre.x(), y - centre.y(), row[x]);
+        }
+      }
+    }
+    if (ring.size() < 8) return out;
+    std::vector<float> sorted = ring;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    if (!(median > 1e-4)) return out;
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : ring_points) {
+      // Drop intrusions of the dot's own polarity (a neighbour, a crease).
+      if (sign > 0 ? p.z() < 0.85 * median : p.z() > median / 0.85) continue;
+      const Eigen::Vector3d a(1, p.x(), p.y());
+      normal += a * a.transpose();
+      rhs += a * p.z();
+    }
+    const Eigen::Vector3d plane = normal.ldlt().solve(rhs);
+    if (!plane.allFinite()) return out;
+    double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    int count = 0;
+    for (int y = y0; y <= y1; ++y) {
+      const float* row = image.ptr<float>(y);
+      for (int x = x0; x <= x1; ++x) {
+        const double dx = x - centre.x(), dy = y - centre.y();
+        if (dx * dx + dy * dy > window * window) continue;
+        const double b = plane(0) + plane(1) * dx + plane(2) * dy;
+        if (!(b > 1e-4)) continue;
+        const double w = sign * (b - row[x]) / b;
+        sw += w;
+        sx += w * dx;
+        sy += w * dy;
+        sxx += w * dx * dx;
+        syy += w * dy * dy;
+        sxy += w * dx * dy;
+        ++count;
+      }
+    }
+    if (!(sw > 0) || count == 0) return out;
+    const Vec2 shift(sx / sw, sy / sw);
+    centre += shift;
+    const double cxx = sxx / sw - shift.x() * shift.x();
+    const double cyy = syy / sw - shift.y() * shift.y();
+    const double cxy = sxy / sw - shift.x() * shift.y();
+    const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+    const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+    const double l1 = tr / 2 + disc, l2 = tr / 2 - disc;
+    out.elongation = l2 > 1e-9 ? std::sqrt(l1 / l2) : 1e9;
+    out.contrast = sw / (M_PI * radius * radius);
+    if (shift.norm() < 1e-3) break;
+  }
+  out.ok = true;
+  out.centre = centre;
+  return out;
+}
+
+std::vector<DotDetection> Detect(const cv::Mat& grey, const DotDetectorOptions& options,
+                                 double dot_size_px, double min_d, double max_d) {
+  const cv::Mat image = AsFloat(grey);
+  const double sign = options.polarity == "bright" ? -1 : 1;
+  int box = static_cast<int>(std::lround(options.background_scale * dot_size_px)) | 1;
+  box = std::max(box, 7);
+  cv::Mat mean;
+  cv::boxFilter(image, mean, CV_32F, cv::Size(box, box), cv::Point(-1, -1), true,
+                cv::BORDER_REPLICATE);
+  cv::Mat mask, limit;
+  if (sign > 0) {
+    const cv::Mat relative = mean * (1 - options.min_contrast), absolute = mean - options.min_step;
+    cv::min(relative, absolute, limit);
+    cv::compare(image, limit, mask, cv::CMP_LT);
+  } else {
+    const cv::Mat relative = mean * (1 + options.min_contrast), absolute = mean + options.min_step;
+    cv::max(relative, absolute, limit);
+    cv::compare(image, limit, mask, cv::CMP_GT);
+  }
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  std::vector<DotDetection> out;
+  const double min_area = std::max(2.0, M_PI / 4 * min_d * min_d);
+  const double max_area = M_PI / 4 * max_d * max_d;
+  const int border = options.border_px;
+  for (int i = 1; i < n; ++i) {
+    const int area = stats.at<int>(i, cv::CC_STAT_AREA);
+    if (area < min_area || area > max_area) continue;
+    const int left = stats.at<int>(i, cv::CC_STAT_LEFT), top = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    if (static_cast<double>(area) / (w * h) < options.min_fill) continue;
+    if (std::max(w, h) > options.max_elongation * std::min(w, h) + 1) continue;
+    const double radius = std::sqrt(area / M_PI);
+    const double margin = border + radius + 4.5;
+    const Vec2 start(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
+    if (left < margin - radius || top < margin - radius || start.x() + margin >= image.cols ||
+        start.y() + margin >= image.rows) {
+      continue;
+    }
+    const Refined refined = RefineCentre(image, start, radius, sign);
+    if (!refined.ok || refined.elongation > options.max_elongation) continue;
+    if ((refined.centre - start).norm() > radius + 1) continue;
+    DotDetection dot;
+    dot.pixel = refined.centre;
+    dot.diameter_px = 2 * radius;
+    dot.contrast = refined.contrast;
+    dot.elongation = refined.elongation;
+    dot.score = std::clamp(refined.contrast / 0.5, 0.0, 1.0) *
+                std::clamp(1.0 / refined.elongation, 0.0, 1.0);
+    out.push_back(dot);
+  }
+  std::sort(out.begin(), out.end(), [](const DotDetection& a, const DotDetection& b) {
+    return a.pixel.y() != b.pixel.y() ? a.pixel.y() < b.pixel.y() : a.pixel.x() < b.pixel.x();
+  });
+  return out;
+}
+
+}  // namespace
+
+std::vector<DotDetection> DetectDots(const cv::Mat& grey, const DotDetectorOptions& options,
+                                     double dot_size_px) {
+  return Detect(grey, options, dot_size_px, options.min_size * dot_size_px,
+                options.max_size * dot_size_px);
+}
+
+double MeasureDotSize(const cv::Mat& grey, const DotDetectorOptions& options) {
+  const std::vector<DotDetection> all = Detect(grey, options, 8.0, 1.6, 16.0);
+  std::vector<double> sizes;
+  for (const DotDetection& d : all) {
+    if (d.elongation < 1.4 && d.contrast > 1.5 * options.min_contrast) sizes.push_back(d.diameter_px);
+  }
+  if (sizes.size() < 8) return 0;
+  std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+  return sizes[sizes.size() / 2];
+}
+
+}  // namespace hmc
