@@ -18,8 +18,9 @@ void DotDetectorOptions::Register(OptionFields* fields) {
               "smallest absolute darkening of a dot pixel (fraction of full scale)");
   fields->Add("min_size", &min_size, "smallest equivalent diameter (fraction of the expected)");
   fields->Add("max_size", &max_size, "largest equivalent diameter (fraction of the expected)");
-  fields->Add("max_elongation", &max_elongation, "largest ratio of the second-moment axes");
-  fields->Add("min_fill", &min_fill, "smallest fraction of the bounding box covered");
+  fields->Add("max_elongation", &max_elongation,
+              "largest ratio of the blob's axes (a disc seen at 78 deg)");
+  fields->Add("min_fill", &min_fill, "smallest fraction of the blob's moment ellipse covered");
   fields->Add("background_scale", &background_scale, "box of the local mean (dot diameters)");
   fields->Add("border_px", &border_px, "clearance from the image border (px)");
 }
@@ -62,7 +63,16 @@ struct Refined {
 
 // Background plane on an annulus, then the iterated centroid of the
 // relative darkening (file comment, step 3). sign = +1 dark, -1 bright.
-Refined RefineCentre(const cv::Mat& image, Vec2 centre, double radius, double sign) {
+// Relative darkening below this is skin texture (the albedo varies by about
+// +-10 %), not paint: it is subtracted before the centroid, so texture
+// outside the dot carries no weight while the disc's (symmetric)
+// anti-aliased rim keeps a symmetric weight.
+constexpr double kTextureFloor = 0.2;
+
+// Pixels of other blobs (labels other than 0 and `own`) are left out of
+// both the background ring and the centroid.
+Refined RefineCentre(const cv::Mat& image, const cv::Mat& labels, int own, Vec2 centre,
+                     double radius, double sign) {
   Refined out;
   const double r_in = radius + 1.5, r_out = radius + 3.5;
   const double window = radius + 1.0;
@@ -76,9 +86,10 @@ Refined RefineCentre(const cv::Mat& image, Vec2 centre, double radius, double si
     std::vector<Eigen::Vector3d> ring_points;
     for (int y = y0; y <= y1; ++y) {
       const float* row = image.ptr<float>(y);
+      const int* label = labels.ptr<int>(y);
       for (int x = x0; x <= x1; ++x) {
         const double d = std::hypot(x - centre.x(), y - centre.y());
-        if (d >= r_in && d <= r_out) {
+        if (d >= r_in && d <= r_out && label[x] == 0) {
           ring.push_back(row[x]);
           ring_points.emplace_back(x - centre.x(), y - centre.y(), row[x]);
         }
@@ -104,12 +115,14 @@ Refined RefineCentre(const cv::Mat& image, Vec2 centre, double radius, double si
     int count = 0;
     for (int y = y0; y <= y1; ++y) {
       const float* row = image.ptr<float>(y);
+      const int* label = labels.ptr<int>(y);
       for (int x = x0; x <= x1; ++x) {
         const double dx = x - centre.x(), dy = y - centre.y();
         if (dx * dx + dy * dy > window * window) continue;
+        if (label[x] != 0 && label[x] != own) continue;
         const double b = plane(0) + plane(1) * dx + plane(2) * dy;
         if (!(b > 1e-4)) continue;
-        const double w = sign * (b - row[x]) / b;
+        const double w = std::max(0.0, sign * (b - row[x]) / b - kTextureFloor);
         sw += w;
         sx += w * dx;
         sy += w * dy;
@@ -129,7 +142,7 @@ Refined RefineCentre(const cv::Mat& image, Vec2 centre, double radius, double si
     const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
     const double l1 = tr / 2 + disc, l2 = tr / 2 - disc;
     out.elongation = l2 > 1e-9 ? std::sqrt(l1 / l2) : 1e9;
-    out.contrast = sw / (M_PI * radius * radius);
+    out.contrast = sw / (M_PI * radius * radius) + kTextureFloor;
     if (shift.norm() < 1e-3) break;
   }
   out.ok = true;
@@ -159,7 +172,7 @@ std::vector<DotDetection> Detect(const cv::Mat& grey, const DotDetectorOptions& 
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
   std::vector<DotDetection> out;
-  const double min_area = std::max(2.0, M_PI / 4 * min_d * min_d);
+  const double min_area = std::max(2.0, M_PI / 4 * min_d * min_d / options.max_elongation);
   const double max_area = M_PI / 4 * max_d * max_d;
   const int border = options.border_px;
   for (int i = 1; i < n; ++i) {
@@ -167,21 +180,44 @@ std::vector<DotDetection> Detect(const cv::Mat& grey, const DotDetectorOptions& 
     if (area < min_area || area > max_area) continue;
     const int left = stats.at<int>(i, cv::CC_STAT_LEFT), top = stats.at<int>(i, cv::CC_STAT_TOP);
     const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-    if (static_cast<double>(area) / (w * h) < options.min_fill) continue;
-    if (std::max(w, h) > options.max_elongation * std::min(w, h) + 1) continue;
+    // Shape of the blob from its binary second moments: an ellipse of
+    // semi-axes 2 sqrt(lambda) has those moments.
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    for (int y = top; y < top + h; ++y) {
+      const int* row = labels.ptr<int>(y);
+      for (int x = left; x < left + w; ++x) {
+        if (row[x] != i) continue;
+        sx += x;
+        sy += y;
+        sxx += static_cast<double>(x) * x;
+        syy += static_cast<double>(y) * y;
+        sxy += static_cast<double>(x) * y;
+      }
+    }
+    const double mx = sx / area, my = sy / area;
+    const double cxx = sxx / area - mx * mx + 1.0 / 12, cyy = syy / area - my * my + 1.0 / 12;
+    const double cxy = sxy / area - mx * my;
+    const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+    const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+    const double major = 4 * std::sqrt(tr / 2 + disc), minor = 4 * std::sqrt(std::max(1e-9, tr / 2 - disc));
+    // A painted disc seen at any angle is at most its diameter long (the
+    // lip line and lashes are longer), an ellipse (fill of its moment
+    // ellipse near 1), and not thinner than max_elongation.
+    if (major < min_d || major > max_d || major > options.max_elongation * minor) continue;
+    if (area < options.min_fill * M_PI / 4 * major * minor) continue;
     const double radius = std::sqrt(area / M_PI);
     const double margin = border + radius + 4.5;
     const Vec2 start(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
-    if (left < margin - radius || top < margin - radius || start.x() + margin >= image.cols ||
+    if (start.x() < margin || start.y() < margin || start.x() + margin >= image.cols ||
         start.y() + margin >= image.rows) {
       continue;
     }
-    const Refined refined = RefineCentre(image, start, radius, sign);
-    if (!refined.ok || refined.elongation > options.max_elongation) continue;
+    const Refined refined = RefineCentre(image, labels, i, start, radius, sign);
+    if (!refined.ok) continue;
     if ((refined.centre - start).norm() > radius + 1) continue;
     DotDetection dot;
     dot.pixel = refined.centre;
-    dot.diameter_px = 2 * radius;
+    dot.diameter_px = major;
     dot.contrast = refined.contrast;
     dot.elongation = refined.elongation;
     dot.score = std::clamp(refined.contrast / 0.5, 0.0, 1.0) *

@@ -8,16 +8,22 @@
 //    least `min_step` of full scale (so noise in the unlit helmet interior
 //    is not a dot). Connected
 //    components of that mask are the candidates.
-// 2. Rejection by size, shape and contrast: equivalent diameter within
-//    [min_size, max_size] x the expected dot diameter, fill of the bounding
-//    box, second-moment elongation, clearance from the image border. This
-//    rejects nostrils, the mouth opening and eye sockets (too big), the lip
-//    line and lashes (too long), isolated noise pixels (too small).
+// 2. Rejection by size and shape: from the blob's binary second moments,
+//    the ellipse of the same moments (axes 4 sqrt(lambda_i)). A painted disc
+//    seen from any angle is an ellipse at most its diameter long: the long
+//    axis must be within [min_size, max_size] x the expected diameter, the
+//    axis ratio <= max_elongation and
+//    the blob must fill >= min_fill of its moment ellipse; plus clearance
+//    from the image border. This rejects nostrils, the mouth opening and eye
+//    sockets (too big), the lip line and lashes (too long), ragged shapes
+//    and isolated noise pixels (too small).
 // 3. Sub-pixel centre: the skin around the dot is fitted by a plane
 //    B(x, y) = a + b x + c y on an annulus (pixels darker than 85 % of the
 //    annulus median dropped), and the centre is the centroid of the
-//    relative darkening w = (B - I) / B over a disc just larger than the dot,
-//    iterated with the disc re-centred. Dividing by B makes w flat over the
+//    relative darkening above the skin texture, w = max(0, (B - I) / B -
+//    0.2), over a disc 1 px larger than the blob's equivalent radius (the
+//    anti-aliased rim), iterated with the disc re-centred; pixels of other
+//    blobs are left out. Dividing by B makes w flat over the
 //    painted disc whatever the shading, so a light gradient does not pull
 //    the centroid; the centroid of a uniform anti-aliased disc is its area
 //    centroid, which is what dots_2d.csv's cx, cy give.
@@ -41,8 +47,8 @@ struct DotDetectorOptions {
   double min_step = 0.03;         // smallest absolute darkening of a dot pixel (fraction of full scale)
   double min_size = 0.45;         // smallest equivalent diameter (fraction of the expected)
   double max_size = 1.9;          // largest equivalent diameter (fraction of the expected)
-  double max_elongation = 2.6;    // largest ratio of the second-moment axes
-  double min_fill = 0.35;         // smallest fraction of the bounding box covered
+  double max_elongation = 5;      // largest ratio of the blob's axes (a disc seen at 78 deg)
+  double min_fill = 0.6;          // smallest fraction of the blob's moment ellipse covered
   double background_scale = 4;    // box of the local mean (dot diameters)
   int border_px = 3;              // clearance from the image border (px)
 
@@ -52,9 +58,9 @@ struct DotDetectorOptions {
 
 struct DotDetection {
   Vec2 pixel = Vec2::Zero();  // sub-pixel centre (px, OpenCV pixel centres)
-  double diameter_px = 0;     // equivalent diameter of the thresholded blob
+  double diameter_px = 0;     // long axis of the thresholded blob (px)
   double contrast = 0;        // mean relative darkening inside the dot
-  double elongation = 1;      // sqrt of the second-moment eigenvalue ratio
+  double elongation = 1;      // axis ratio of the darkening's second moments
   double score = 0;           // quality in [0, 1]
 };
 

@@ -1,5 +1,6 @@
 #include "tracking/dot_detector.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -67,14 +68,17 @@ TEST(DotDetectorTest, CentresAreSubPixelAccurateOnShadedNoisySkin) {
       const Scene scene = MakeScene(seed, diameter, 40, 1.0);
       const std::vector<DotDetection> found = DetectDots(scene.image, options, diameter);
       EXPECT_EQ(found.size(), scene.centres.size()) << "seed " << seed << " d " << diameter;
-      double worst = 0;
+      std::vector<double> errors;
       for (const Vec2& c : scene.centres) {
         double best = 1e9;
         for (const DotDetection& d : found) best = std::min(best, (d.pixel - c).norm());
-        worst = std::max(worst, best);
+        errors.push_back(best);
       }
-      // 8-bit quantisation and read noise 1 on ~3 to 11 px discs.
-      EXPECT_LT(worst, diameter < 4 ? 0.08 : 0.05) << "seed " << seed << " d " << diameter;
+      std::sort(errors.begin(), errors.end());
+      // 8-bit quantisation and read noise 1 on 3 to 11 px discs; the issue's
+      // targets for full dots (median 0.05 px, p95 0.15 px).
+      EXPECT_LT(errors[errors.size() / 2], 0.05) << "seed " << seed << " d " << diameter;
+      EXPECT_LT(errors[errors.size() * 95 / 100], 0.15) << "seed " << seed << " d " << diameter;
     }
   }
 }

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+#include <opencv2/video/tracking.hpp>
 #include <spdlog/spdlog.h>
 
 #include "tracking/assignment.h"
@@ -37,6 +38,9 @@ void MarkerTrackerOptions::Register(OptionFields* fields) {
   fields->Add("epipolar_gap_mm", &epipolar_gap_mm,
               "stereo swap check: largest ray gap of a named pair (mm)");
   fields->Add("neighbours", &neighbours, "layout neighbours that carry a lost dot's motion");
+  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
+  fields->Add("flow_check_px", &flow_check_px,
+              "largest forward-backward flow disagreement (px)");
 }
 
 bool MarkerTrackerOptions::Check() const {
@@ -59,6 +63,8 @@ bool MarkerTrackerOptions::Check() const {
   need(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
   need(epipolar_gap_mm > 0, "epipolar_gap_mm must be > 0");
   need(neighbours >= 1, "neighbours must be >= 1");
+  need(flow_window >= 1 && flow_window <= 10, "flow_window must be in [1, 10]");
+  need(flow_check_px > 0, "flow_check_px must be > 0");
   return ok;
 }
 
@@ -147,6 +153,19 @@ Rigid3 FitRigid(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
 
 double AngleDeg(const Rigid3& t) {
   return Eigen::AngleAxisd(t.linear()).angle() * 180 / M_PI;
+}
+
+int FlowWindow(double dot_size_px, double window) {
+  return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
+}
+
+std::vector<cv::Mat> FlowPyramid(const cv::Mat& image, int window) {
+  std::vector<cv::Mat> pyramid;
+  if (image.empty()) return pyramid;
+  cv::Mat grey8 = image;
+  if (image.depth() == CV_16U) image.convertTo(grey8, CV_8U, 1.0 / 257);
+  cv::buildOpticalFlowPyramid(grey8, pyramid, cv::Size(window, window), 3);
+  return pyramid;
 }
 
 }  // namespace
@@ -374,11 +393,17 @@ void MarkerTracker::StereoCheck(const std::vector<std::vector<DotDetection>>& de
 }
 
 std::vector<CameraFrameTracks> MarkerTracker::Start(
-    const std::vector<std::vector<DotDetection>>& detections) {
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images,
+    const std::vector<double>& dot_size_px) {
   const int num_cameras = static_cast<int>(rig_.cameras.size());
   const int num_markers = static_cast<int>(layout_.names.size());
   std::vector<CameraFrameTracks> out(num_cameras);
   state_.assign(num_cameras, std::vector<DotState>(num_markers));
+  dot_size_px_ = dot_size_px;
+  pyramid_.assign(num_cameras, {});
+  for (int c = 0; c < num_cameras; ++c) {
+    pyramid_[c] = FlowPyramid(images[c], FlowWindow(dot_size_px_[c], options_.flow_window));
+  }
   Register(detections);
   if (!labelling_.ok) return out;
   std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
@@ -449,16 +474,54 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
 }
 
 std::vector<CameraFrameTracks> MarkerTracker::Step(
-    const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present) {
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images) {
   const int num_cameras = static_cast<int>(rig_.cameras.size());
   const int num_markers = static_cast<int>(layout_.names.size());
   std::vector<CameraFrameTracks> out(num_cameras);
   std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
+  std::vector<bool> present(num_cameras);
+  for (int c = 0; c < num_cameras; ++c) present[c] = !images[c].empty();
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) {
       out[c].skipped = true;
+      pyramid_[c].clear();
       continue;
     }
+    const int window = FlowWindow(dot_size_px_[c], options_.flow_window);
+    std::vector<cv::Mat> pyramid = FlowPyramid(images[c], window);
+    // Flow of the tracked dots from the previous frame, checked backwards.
+    std::vector<int> flowed;
+    std::vector<cv::Point2f> from, to, back;
+    if (!pyramid_[c].empty()) {
+      for (int k = 0; k < num_markers; ++k) {
+        const DotState& s = state_[c][k];
+        if (s.status != Status::kTracked) continue;
+        flowed.push_back(k);
+        from.emplace_back(static_cast<float>(s.position.x()), static_cast<float>(s.position.y()));
+        to.emplace_back(static_cast<float>(s.position.x() + s.velocity.x()),
+                        static_cast<float>(s.position.y() + s.velocity.y()));
+      }
+    }
+    std::vector<char> flow_ok(num_markers, 0);
+    std::vector<Vec2> flow_to(num_markers);
+    if (!flowed.empty()) {
+      std::vector<uchar> status, back_status;
+      std::vector<float> error, back_error;
+      const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01);
+      cv::calcOpticalFlowPyrLK(pyramid_[c], pyramid, from, to, status, error,
+                               cv::Size(window, window), 3, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+      back = from;
+      cv::calcOpticalFlowPyrLK(pyramid, pyramid_[c], to, back, back_status, back_error,
+                               cv::Size(window, window), 3, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+      for (size_t i = 0; i < flowed.size(); ++i) {
+        const double disagreement = std::hypot(back[i].x - from[i].x, back[i].y - from[i].y);
+        if (status[i] && back_status[i] && disagreement <= options_.flow_check_px) {
+          flow_ok[flowed[i]] = 1;
+          flow_to[flowed[i]] = Vec2(to[i].x, to[i].y);
+        }
+      }
+    }
+    pyramid_[c] = std::move(pyramid);
     std::vector<Vec2> prediction(num_markers);
     std::vector<char> predicted(num_markers, 0);
     std::vector<double> fraction(num_markers, options_.track_gate);
@@ -467,7 +530,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
       if (!s.has_position) continue;
       predicted[k] = 1;
       if (s.status == Status::kTracked) {
-        prediction[k] = s.position + s.velocity;
+        prediction[k] = flow_ok[k] ? flow_to[k] : Vec2(s.position + s.velocity);
       } else {
         prediction[k] = s.position;
         fraction[k] = options_.reacquire_gate;

@@ -22,7 +22,10 @@
 //      marker's projection is corrected by the mean residual of its named
 //      layout neighbours (the face is near, not at, neutral).
 // Tracking (Step), per camera:
-//   a tracked dot is predicted at its position plus its last motion, a lost
+//   a tracked dot is predicted by pyramidal Lucas-Kanade flow of its
+//   neighbourhood from the previous frame (Bouguet 2000, OpenCV; kept only
+//   where the backward flow returns within `flow_check_px`), else at its
+//   position plus its last motion; a lost
 //   (or never seen) dot at its anchor moved by the mean motion of its named
 //   layout neighbours; all predictions are matched to the detections by one
 //   gated global assignment (two names never take one dot). Gates are
@@ -57,6 +60,8 @@ struct MarkerTrackerOptions {
   double ambiguity_ratio = 2;        // second-nearest detection at least this much farther
   double epipolar_gap_mm = 1.5;      // stereo swap check: largest ray gap of a named pair (mm)
   int neighbours = 6;                // layout neighbours that carry a lost dot's motion
+  double flow_window = 3;            // Lucas-Kanade window (dot diameters)
+  double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -99,10 +104,14 @@ class MarkerTracker {
 
   // Labels the reference frame (file comment). Per camera the named dots;
   // labelling() tells how the registration went.
-  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections);
-  // The next frame; a camera whose image is missing has present[c] false.
+  // images: per camera the frame (CV_8U or CV_16U grey) the detections
+  // come from; dot_size_px: per camera, sets the flow window.
+  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections,
+                                       const std::vector<cv::Mat>& images,
+                                       const std::vector<double>& dot_size_px);
+  // The next frame; a camera whose image is missing has an empty image.
   std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& detections,
-                                      const std::vector<bool>& present);
+                                      const std::vector<cv::Mat>& images);
 
   const ReferenceLabelling& labelling() const { return labelling_; }
 
@@ -129,6 +138,8 @@ class MarkerTracker {
   MarkerTrackerOptions options_;
   ReferenceLabelling labelling_;
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
+  std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
+  std::vector<double> dot_size_px_;
 };
 
 }  // namespace hmc

@@ -168,7 +168,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
         spdlog::debug("reference frame {} {}: dot size {:.2f} px, {} detections", frame->frame,
                       names[c], dot_size[c], detections[c].size());
       }
-      result = tracker.Start(detections);
+      result = tracker.Start(detections, frame->images, dot_size);
       summary.labelling = tracker.labelling();
       if (!summary.labelling.ok) {
         ThrowInputError(input.shot, 0, "cannot label the reference frame {}: {}", frame->frame,
@@ -177,7 +177,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       summary.reference_frame = frame->frame;
       started = true;
     } else {
-      result = tracker.Step(detections, present);
+      result = tracker.Step(detections, frame->images);
     }
     ++summary.frames;
     nlohmann::json frame_json;
