@@ -69,6 +69,14 @@ struct Refined {
 // anti-aliased rim keeps a symmetric weight.
 constexpr double kTextureFloor = 0.2;
 
+// A dot pixel's darkening, in sensor-noise sigmas (a 5-sigma pixel is a
+// 1-in-3.5-million event of Gaussian noise).
+constexpr double kNoiseSigmas = 5;
+
+// Largest fraction of the background ring that may be darker than 85 % of
+// its median.
+constexpr double kMaxRingIntrusion = 0.5;
+
 // Pixels of other blobs (labels other than 0 and `own`) are left out of
 // both the background ring and the centroid.
 Refined RefineCentre(const cv::Mat& image, const cv::Mat& labels, int own, Vec2 centre,
@@ -102,13 +110,21 @@ Refined RefineCentre(const cv::Mat& image, const cv::Mat& labels, int own, Vec2 
     if (!(median > 1e-4)) return out;
     Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
     Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    int intruded = 0;
     for (const Eigen::Vector3d& p : ring_points) {
       // Drop intrusions of the dot's own polarity (a neighbour, a crease).
-      if (sign > 0 ? p.z() < 0.85 * median : p.z() > median / 0.85) continue;
+      if (sign > 0 ? p.z() < 0.85 * median : p.z() > median / 0.85) {
+        ++intruded;
+        continue;
+      }
       const Eigen::Vector3d a(1, p.x(), p.y());
       normal += a * a.transpose();
       rhs += a * p.z();
     }
+    // Skin must surround a painted dot: where much of the ring is dark
+    // (the face's silhouette, the lip line, an eyelid), the dot is cut by
+    // an occluding edge and its centroid is not the dot's.
+    if (intruded > kMaxRingIntrusion * ring_points.size()) return out;
     const Eigen::Vector3d plane = normal.ldlt().solve(rhs);
     if (!plane.allFinite()) return out;
     double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
@@ -150,9 +166,28 @@ Refined RefineCentre(const cv::Mat& image, const cv::Mat& labels, int own, Vec2 
   return out;
 }
 
+// The sensor noise sigma, from horizontal neighbour differences on lit
+// pixels (every 4th row): for independent noise, I(x+1) - I(x) has std
+// sqrt(2) sigma, and its median absolute value is 0.6745 of that std.
+double EstimateNoise(const cv::Mat& image) {
+  std::vector<float> diffs;
+  for (int y = 0; y < image.rows; y += 4) {
+    const float* row = image.ptr<float>(y);
+    for (int x = 0; x + 1 < image.cols; x += 2) {
+      if (row[x] > 0.1f) diffs.push_back(std::abs(row[x + 1] - row[x]));
+    }
+  }
+  if (diffs.size() < 100) return 0;
+  std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
+  return diffs[diffs.size() / 2] / (0.6745 * std::sqrt(2.0));
+}
+
 std::vector<DotDetection> Detect(const cv::Mat& grey, const DotDetectorOptions& options,
                                  double dot_size_px, double min_d, double max_d) {
   const cv::Mat image = AsFloat(grey);
+  // A dot pixel is darker than the local mean by at least min_step and by
+  // kNoiseSigmas noise sigmas (noise blobs are not dots).
+  const double step = std::max(options.min_step, kNoiseSigmas * EstimateNoise(image));
   const double sign = options.polarity == "bright" ? -1 : 1;
   int box = static_cast<int>(std::lround(options.background_scale * dot_size_px)) | 1;
   box = std::max(box, 7);
@@ -161,11 +196,11 @@ std::vector<DotDetection> Detect(const cv::Mat& grey, const DotDetectorOptions& 
                 cv::BORDER_REPLICATE);
   cv::Mat mask, limit;
   if (sign > 0) {
-    const cv::Mat relative = mean * (1 - options.min_contrast), absolute = mean - options.min_step;
+    const cv::Mat relative = mean * (1 - options.min_contrast), absolute = mean - step;
     cv::min(relative, absolute, limit);
     cv::compare(image, limit, mask, cv::CMP_LT);
   } else {
-    const cv::Mat relative = mean * (1 + options.min_contrast), absolute = mean + options.min_step;
+    const cv::Mat relative = mean * (1 + options.min_contrast), absolute = mean + step;
     cv::max(relative, absolute, limit);
     cv::compare(image, limit, mask, cv::CMP_GT);
   }

@@ -5,8 +5,9 @@
 //    `background_scale` dot diameters, a pixel belongs to a dark dot where
 //    I < (1 - c) B (bright dots: I > (1 + c) B), c = min_contrast, a
 //    relative darkening that does not depend on the lighting, and by at
-//    least `min_step` of full scale (so noise in the unlit helmet interior
-//    is not a dot). Connected
+//    least `min_step` of full scale and 5 noise sigmas (the noise estimated
+//    from neighbour differences on lit pixels), so sensor noise, also in
+//    the unlit helmet interior, is not a dot. Connected
 //    components of that mask are the candidates.
 // 2. Rejection by size and shape: from the blob's binary second moments,
 //    the ellipse of the same moments (axes 4 sqrt(lambda_i)). A painted disc

@@ -54,8 +54,8 @@ struct MarkerTrackerOptions {
   double inlier_mm = 2.5;            // registration inlier distance (mm)
   int ransac_samples = 600;          // RANSAC triples of points tried
   double name_gate = 0.4;            // naming gate (fraction of the distance to the nearest other dot)
-  double track_gate = 0.45;          // tracking gate (fraction of the distance to the nearest other dot)
-  double reacquire_gate = 0.3;       // re-acquisition gate (fraction of the nearest-dot distance)
+  double track_gate = 0.3;           // tracking gate (fraction of the distance to the nearest other dot)
+  double reacquire_gate = 0.2;       // re-acquisition gate (fraction of the nearest-dot distance)
   double max_gate_px = 25;           // cap of every gate (px)
   double ambiguity_ratio = 2;        // second-nearest detection at least this much farther
   double epipolar_gap_mm = 1.5;      // stereo swap check: largest ray gap of a named pair (mm)
