@@ -37,7 +37,7 @@ void MarkerTrackerOptions::Register(OptionFields* fields) {
               "second-nearest detection at least this much farther");
   fields->Add("epipolar_gap_mm", &epipolar_gap_mm,
               "stereo swap check: largest ray gap of a named pair (mm)");
-  fields->Add("neighbours", &neighbours, "layout neighbours that carry a lost dot's motion");
+  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection");
   fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
   fields->Add("flow_check_px", &flow_check_px,
               "largest forward-backward flow disagreement (px)");
@@ -392,6 +392,91 @@ void MarkerTracker::StereoCheck(const std::vector<std::vector<DotDetection>>& de
   }
 }
 
+void MarkerTracker::NameFromLayout(int c, const std::vector<DotDetection>& detections,
+                                   double gate_fraction, bool allow_uncorrected,
+                                   std::vector<int>* detection_of) const {
+  const int num_markers = static_cast<int>(layout_.names.size());
+  const HelmetCamera& hc = rig_.cameras[c];
+  const Rigid3 cam_from_head = hc.cam_from_helmet * helmet_from_head_;
+  std::vector<char> facing(num_markers, 0);
+  std::vector<Vec2> projection(num_markers, Vec2::Zero());
+  for (int k = 0; k < num_markers; ++k) {
+    const Vec3 p = cam_from_head * layout_.positions[k];
+    const Vec3 n = cam_from_head.linear() * layout_.normals[k];
+    Vec2 u;
+    if (!hc.camera.Project(p, &u) || !hc.camera.IsInImage(u)) continue;
+    facing[k] = n.dot(p.normalized()) < -0.1;
+    projection[k] = u;
+  }
+  const std::vector<double> fraction(num_markers, gate_fraction);
+  for (int round = 0; round < 4; ++round) {
+    std::vector<Vec2> prediction(num_markers, Vec2::Zero());
+    std::vector<char> predicted(num_markers, 0);
+    int before = 0;
+    for (int k = 0; k < num_markers; ++k) {
+      if ((*detection_of)[k] >= 0) {
+        // Named: where its dot is (it only shapes the others' gates).
+        prediction[k] = detections[(*detection_of)[k]].pixel;
+        predicted[k] = 1;
+        ++before;
+        continue;
+      }
+      if (!facing[k]) continue;
+      // The projection under the head pose, corrected by the mean residual
+      // of the named layout neighbours (the face is not at neutral).
+      Vec2 sum = Vec2::Zero();
+      int count = 0;
+      for (int j : layout_.neighbours[k]) {
+        if ((*detection_of)[j] < 0 || !facing[j]) continue;
+        sum += detections[(*detection_of)[j]].pixel - projection[j];
+        ++count;
+      }
+      if (count == 0 && !(allow_uncorrected && round == 0)) continue;
+      prediction[k] = projection[k] + (count > 0 ? Vec2(sum / count) : Vec2::Zero());
+      predicted[k] = 1;
+    }
+    Match(c, detections, prediction, predicted, fraction, true, detection_of);
+    const int after = static_cast<int>(
+        std::count_if(detection_of->begin(), detection_of->end(), [](int d) { return d >= 0; }));
+    if (after == before) break;
+  }
+}
+
+void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
+                                   const std::vector<std::vector<int>>& detection_of) {
+  if (detection_of.size() < 2) return;
+  std::vector<Vec3> from, to;
+  for (size_t k = 0; k < layout_.names.size(); ++k) {
+    const int d0 = detection_of[0][k], d1 = detection_of[1][k];
+    if (d0 < 0 || d1 < 0) continue;
+    const RayApproach a = ClosestApproach(PixelRay(rig_.cameras[0], detections[0][d0].pixel),
+                                          PixelRay(rig_.cameras[1], detections[1][d1].pixel));
+    if (!a.ok) continue;
+    from.push_back(layout_.positions[k]);
+    to.push_back(a.midpoint);
+  }
+  // Trimmed rigid fit: the expression moves some markers far from neutral.
+  for (int iteration = 0; iteration < 3 && from.size() >= 6; ++iteration) {
+    const Rigid3 t = FitRigid(from, to);
+    std::vector<double> residual(from.size());
+    for (size_t i = 0; i < from.size(); ++i) residual[i] = (t * from[i] - to[i]).norm();
+    std::vector<double> sorted = residual;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double keep = std::max(options_.inlier_mm, 2 * sorted[sorted.size() / 2]);
+    std::vector<Vec3> f2, t2;
+    for (size_t i = 0; i < from.size(); ++i) {
+      if (residual[i] <= keep) {
+        f2.push_back(from[i]);
+        t2.push_back(to[i]);
+      }
+    }
+    helmet_from_head_ = t;
+    if (f2.size() == from.size()) break;
+    from.swap(f2);
+    to.swap(t2);
+  }
+}
+
 std::vector<CameraFrameTracks> MarkerTracker::Start(
     const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images,
     const std::vector<double>& dot_size_px) {
@@ -408,50 +493,9 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   if (!labelling_.ok) return out;
   std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
   std::vector<std::vector<Vec2>> projection(num_cameras, std::vector<Vec2>(num_markers));
+  helmet_from_head_ = labelling_.helmet_from_head;
   for (int c = 0; c < num_cameras; ++c) {
-    const HelmetCamera& hc = rig_.cameras[c];
-    const Rigid3 cam_from_head = hc.cam_from_helmet * labelling_.helmet_from_head;
-    std::vector<char> facing(num_markers, 0), in_image(num_markers, 0);
-    for (int k = 0; k < num_markers; ++k) {
-      const Vec3 p = cam_from_head * layout_.positions[k];
-      const Vec3 n = cam_from_head.linear() * layout_.normals[k];
-      Vec2 u;
-      if (!hc.camera.Project(p, &u) || !hc.camera.IsInImage(u)) continue;
-      in_image[k] = 1;
-      facing[k] = n.dot(p.normalized()) < -0.1;
-      projection[c][k] = u;
-      state_[c][k].has_position = true;
-      state_[c][k].position = u;
-      state_[c][k].status = Status::kLost;
-    }
-    const std::vector<double> fraction(num_markers, options_.name_gate);
-    std::vector<Vec2> prediction = projection[c];
-    for (int round = 0; round < 4; ++round) {
-      const int named_before = static_cast<int>(
-          std::count_if(detection_of[c].begin(), detection_of[c].end(), [](int d) { return d >= 0; }));
-      std::vector<char> predicted(num_markers, 0);
-      for (int k = 0; k < num_markers; ++k) predicted[k] = facing[k];
-      if (round > 0) {
-        // Correct unnamed projections by their named neighbours' residuals.
-        for (int k = 0; k < num_markers; ++k) {
-          if (!facing[k] || detection_of[c][k] >= 0) continue;
-          Vec2 sum = Vec2::Zero();
-          int count = 0;
-          for (int j : layout_.neighbours[k]) {
-            if (detection_of[c][j] < 0) continue;
-            sum += detections[c][detection_of[c][j]].pixel - projection[c][j];
-            ++count;
-          }
-          if (count > 0) prediction[k] = projection[c][k] + sum / count;
-        }
-      }
-      // Spacing uses every facing marker's prediction; named ones are not
-      // matched again (Match skips them).
-      Match(c, detections[c], prediction, predicted, fraction, true, &detection_of[c]);
-      const int named = static_cast<int>(
-          std::count_if(detection_of[c].begin(), detection_of[c].end(), [](int d) { return d >= 0; }));
-      if (named == named_before) break;
-    }
+    NameFromLayout(c, detections[c], options_.name_gate, true, &detection_of[c]);
   }
   StereoCheck(detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
@@ -528,22 +572,23 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     for (int k = 0; k < num_markers; ++k) {
       const DotState& s = state_[c][k];
       if (!s.has_position) continue;
+      if (s.status != Status::kTracked) continue;
       predicted[k] = 1;
-      if (s.status == Status::kTracked) {
-        prediction[k] = flow_ok[k] ? flow_to[k] : Vec2(s.position + s.velocity);
-      } else {
-        prediction[k] = s.position;
-        fraction[k] = options_.reacquire_gate;
-      }
+      prediction[k] = flow_ok[k] ? flow_to[k] : Vec2(s.position + s.velocity);
     }
     Match(c, detections[c], prediction, predicted, fraction, false, &detection_of[c]);
+  }
+  StereoCheck(detections, &detection_of, &out);
+  // Re-acquisition: the lost and never-seen dots from the layout under the
+  // current head pose, corrected by their named neighbours.
+  UpdateHeadPose(detections, detection_of);
+  for (int c = 0; c < num_cameras; ++c) {
+    if (present[c]) NameFromLayout(c, detections[c], options_.reacquire_gate, false, &detection_of[c]);
   }
   StereoCheck(detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) continue;
     out[c].detections = static_cast<int>(detections[c].size());
-    std::vector<Vec2> motion(num_markers, Vec2::Zero());
-    std::vector<char> moved(num_markers, 0);
     for (int k = 0; k < num_markers; ++k) {
       DotState& s = state_[c][k];
       const int d = detection_of[c][k];
@@ -551,8 +596,6 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
         const Vec2 p = detections[c][d].pixel;
         if (s.status == Status::kTracked) {
           s.velocity = p - s.position;
-          motion[k] = s.velocity;
-          moved[k] = 1;
         } else {
           s.velocity.setZero();
           ++out[c].reacquired;
@@ -568,19 +611,6 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
         s.velocity.setZero();
         ++out[c].lost;
       }
-    }
-    // A lost dot moves with its named neighbours.
-    for (int k = 0; k < num_markers; ++k) {
-      DotState& s = state_[c][k];
-      if (s.status != Status::kLost || !s.has_position) continue;
-      Vec2 sum = Vec2::Zero();
-      int count = 0;
-      for (int j : layout_.neighbours[k]) {
-        if (!moved[j]) continue;
-        sum += motion[j];
-        ++count;
-      }
-      if (count > 0) s.position += sum / count;
     }
     out[c].unnamed = out[c].detections - static_cast<int>(out[c].marker.size());
   }

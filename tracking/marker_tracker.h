@@ -25,12 +25,14 @@
 //   a tracked dot is predicted by pyramidal Lucas-Kanade flow of its
 //   neighbourhood from the previous frame (Bouguet 2000, OpenCV; kept only
 //   where the backward flow returns within `flow_check_px`), else at its
-//   position plus its last motion; a lost
-//   (or never seen) dot at its anchor moved by the mean motion of its named
-//   layout neighbours; all predictions are matched to the detections by one
-//   gated global assignment (two names never take one dot). Gates are
-//   fractions of the distance to the nearest other prediction, tighter for
-//   re-acquisition, which must also be unambiguous. A dot named in both
+//   position plus its last motion; the predictions are matched to the
+//   detections by one gated global assignment (two names never take one
+//   dot), the gate a fraction of the distance to the nearest other dot.
+//   Then the head pose is refitted (trimmed rigid fit of the layout to the
+//   markers named in both cameras) and the lost and never-seen dots are
+//   named as at the reference frame (step 3) with the tighter
+//   `reacquire_gate`: projection under the pose, corrected by the named
+//   neighbours' residuals, unambiguous matches only. A dot named in both
 //   cameras whose rays miss by more than `epipolar_gap_mm` is a swap: the
 //   name is dropped in both for the frame. A dot with no detection in its
 //   gate is hidden: no row, the track is lost until re-acquired.
@@ -59,7 +61,7 @@ struct MarkerTrackerOptions {
   double max_gate_px = 25;           // cap of every gate (px)
   double ambiguity_ratio = 2;        // second-nearest detection at least this much farther
   double epipolar_gap_mm = 1.5;      // stereo swap check: largest ray gap of a named pair (mm)
-  int neighbours = 6;                // layout neighbours that carry a lost dot's motion
+  int neighbours = 6;                // layout neighbours whose residuals correct a projection
   double flow_window = 3;            // Lucas-Kanade window (dot diameters)
   double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
 
@@ -129,6 +131,13 @@ class MarkerTracker {
              const std::vector<Vec2>& prediction, const std::vector<char>& predicted,
              const std::vector<double>& gate_fraction, bool require_unambiguous_all,
              std::vector<int>* detection_of) const;
+  // Names unnamed markers of camera c from the layout under
+  // helmet_from_head_ (file comment, step 3), in rounds.
+  void NameFromLayout(int c, const std::vector<DotDetection>& detections, double gate_fraction,
+                      bool allow_uncorrected, std::vector<int>* detection_of) const;
+  // helmet_from_head_ from the markers named in both cameras (trimmed fit).
+  void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
+                      const std::vector<std::vector<int>>& detection_of);
   void StereoCheck(const std::vector<std::vector<DotDetection>>& detections,
                    std::vector<std::vector<int>>* detection_of,
                    std::vector<CameraFrameTracks>* out) const;
@@ -140,6 +149,7 @@ class MarkerTracker {
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
   std::vector<double> dot_size_px_;
+  Rigid3 helmet_from_head_ = Rigid3::Identity();
 };
 
 }  // namespace hmc
