@@ -15,6 +15,7 @@
 #include "core/image_io.h"
 #include "core/logging.h"
 #include "core/parallel.h"
+#include "tracking/overlay.h"
 
 namespace hmc {
 
@@ -55,21 +56,13 @@ std::string TrackSummary::BriefReport() const {
 
 namespace {
 
-// The named dots drawn on a frame (overlay and `hmc undistort --tracks` use
-// their own drawings; this one is in the fisheye image).
+// The named dots drawn on a fisheye frame (--overlay).
 cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
                   const MarkerLayout& layout, const std::string& label) {
   cv::Mat bgr;
   cv::cvtColor(ToGrey8(grey), bgr, cv::COLOR_GRAY2BGR);
-  const int shift = 4;
   for (size_t i = 0; i < tracks.marker.size(); ++i) {
-    const cv::Point centre(static_cast<int>(std::lround(tracks.pixel[i].x() * (1 << shift))),
-                           static_cast<int>(std::lround(tracks.pixel[i].y() * (1 << shift))));
-    cv::circle(bgr, centre, 5 << shift, cv::Scalar(60, 220, 60), 1, cv::LINE_AA, shift);
-    cv::putText(bgr, layout.names[tracks.marker[i]],
-                cv::Point(static_cast<int>(tracks.pixel[i].x()) + 6,
-                          static_cast<int>(tracks.pixel[i].y()) - 4),
-                cv::FONT_HERSHEY_PLAIN, 0.7, cv::Scalar(80, 230, 255), 1, cv::LINE_AA);
+    DrawNamedDot(&bgr, tracks.pixel[i], layout.names[tracks.marker[i]]);
   }
   cv::putText(bgr, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
               cv::Scalar(255, 255, 255), 1, cv::LINE_AA);

@@ -15,6 +15,7 @@
 #include "core/logging.h"
 #include "core/parallel.h"
 #include "core/tracks_2d.h"
+#include "tracking/overlay.h"
 
 namespace hmc {
 
@@ -156,12 +157,7 @@ UndistortSummary RunUndistort(const UndistortInput& input, const UndistortOption
                 !views[c].Project(bearing, &p)) {
               continue;
             }
-            const int shift = 4;
-            cv::circle(bgr, cv::Point(static_cast<int>(std::lround(p.x() * 16)),
-                                      static_cast<int>(std::lround(p.y() * 16))),
-                       5 << shift, cv::Scalar(60, 220, 60), 1, cv::LINE_AA, shift);
-            cv::putText(bgr, t.marker, cv::Point(static_cast<int>(p.x()) + 6, static_cast<int>(p.y()) - 4),
-                        cv::FONT_HERSHEY_PLAIN, 0.7, cv::Scalar(80, 230, 255), 1, cv::LINE_AA);
+            DrawNamedDot(&bgr, p, t.marker);
           }
         }
         image = bgr;
