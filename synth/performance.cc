@@ -20,6 +20,10 @@ void PerformanceOptions::Register(OptionFields* fields) {
   fields->Add("vibration_mm", &vibration_mm, "amplitude of the helmet vibration (mm)");
   fields->Add("vibration_deg", &vibration_deg, "amplitude of the vibration's rotation (deg)");
   fields->Add("vibration_hz", &vibration_hz, "main vibration frequency (Hz)");
+  fields->Add("head_offset_mm", &head_offset_mm,
+              "head placed this far from rest for the whole shot, random direction (mm)");
+  fields->Add("head_offset_deg", &head_offset_deg,
+              "and turned this much about a random axis through the head origin (deg)");
 }
 
 bool PerformanceOptions::Check() const {
@@ -35,6 +39,8 @@ bool PerformanceOptions::Check() const {
   if (!(vibration_mm >= 0 && vibration_mm <= 5)) fail("vibration_mm must be in [0, 5]");
   if (!(vibration_deg >= 0 && vibration_deg <= 2)) fail("vibration_deg must be in [0, 2]");
   if (!(vibration_hz > 0 && vibration_hz <= 500)) fail("vibration_hz must be in (0, 500]");
+  if (!(head_offset_mm >= 0 && head_offset_mm <= 40)) fail("head_offset_mm must be in [0, 40]");
+  if (!(head_offset_deg >= 0 && head_offset_deg <= 30)) fail("head_offset_deg must be in [0, 30]");
   return ok;
 }
 
@@ -82,6 +88,19 @@ Rigid3 HeadFromHelmetAt(const PerformanceOptions& options, double t_s) {
     out.linear() = Eigen::AngleAxisd(angle, rotation_deg.normalized()).toRotationMatrix();
   }
   out.translation() = translation;
+  if (options.head_offset_mm > 0 || options.head_offset_deg > 0) {
+    // A constant placement of the head away from rest (its own stream, so
+    // the other draws do not change): the head at rest maps to
+    // offset * head, i.e. head_from_helmet gains offset^-1.
+    SynthRandom offset_rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 51);
+    const Vec3 offset_dir = RandomDirection(&offset_rng);
+    const Vec3 axis = RandomDirection(&offset_rng);
+    Rigid3 helmet_from_placed = Rigid3::Identity();
+    helmet_from_placed.linear() =
+        Eigen::AngleAxisd(options.head_offset_deg * M_PI / 180, axis).toRotationMatrix();
+    helmet_from_placed.translation() = options.head_offset_mm * offset_dir;
+    out = out * helmet_from_placed.inverse();
+  }
   return out;
 }
 

@@ -27,6 +27,8 @@ struct PerformanceOptions {
   double vibration_mm = 0.12;   // amplitude of the helmet vibration (mm)
   double vibration_deg = 0.04;  // amplitude of the vibration's rotation (deg)
   double vibration_hz = 11;     // main vibration frequency (Hz)
+  double head_offset_mm = 0;    // head placed this far from rest for the whole shot, random direction (mm)
+  double head_offset_deg = 0;   // and turned this much about a random axis through the head origin (deg)
 
   void Register(OptionFields* fields);
   bool Check() const;

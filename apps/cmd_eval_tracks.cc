@@ -1,0 +1,43 @@
+// `hmc eval-tracks --tracks tracks_2d.csv --truth SHOT/dots_2d.csv [--json FILE]`:
+// how `hmc track`'s output compares with a synthetic shot's ground truth
+// (tracking/track_eval.h): accuracy of full dots, recall of full and partial
+// dots, wrong names, rows on hidden dots.
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "apps/command.h"
+#include "core/file_util.h"
+#include "core/tracks_2d.h"
+#include "tracking/track_eval.h"
+
+namespace hmc {
+
+HMC_COMMAND(EvalTracks, "", "eval-tracks",
+            "Score tracks_2d.csv against a synthetic shot's dots_2d.csv") {
+  auto tracks = std::make_shared<std::string>();
+  auto truth = std::make_shared<std::string>();
+  auto json = std::make_shared<std::string>();
+  app->add_option("--tracks", *tracks, "tracks_2d.csv (from hmc track)")->required();
+  app->add_option("--truth", *truth, "dots_2d.csv of the shot (from hmc synth shot)")->required();
+  app->add_option("--json", *json, "Write the figures to this JSON file");
+  return [=] {
+    const TrackScore s = ScoreTracks(ReadTracks2dCsv(*tracks), ReadDots2dCsv(*truth));
+    spdlog::info("eval-tracks: {}", s.BriefReport());
+    if (!json->empty()) {
+      const nlohmann::json j = {
+          {"rows", s.rows},           {"full", s.full},
+          {"full_named", s.full_named}, {"partial", s.partial},
+          {"partial_named", s.partial_named}, {"hidden", s.hidden},
+          {"hidden_rows", s.hidden_rows}, {"wrong", s.wrong},
+          {"median_px", s.median_px}, {"p95_px", s.p95_px},
+          {"max_px", s.max_px}};
+      WriteFileAtomic(*json, j.dump(1));
+    }
+    return 0;
+  };
+}
+
+}  // namespace hmc

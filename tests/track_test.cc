@@ -1,0 +1,245 @@
+// End to end: `hmc synth shot` (small actor, half-size images, a few frames)
+// then `hmc track`, scored against the shot's dots_2d.csv read
+// independently (tracking/track_eval.h); corrupt, hidden and wrong inputs.
+// The full-size measurement (3 seeds, default and hard presets, offset
+// head, small dots) is scripts/measure_tracking (docs/tracking.md).
+#include <algorithm>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/file_util.h"
+#include "core/tracks_2d.h"
+#include "tests/cli_runner.h"
+#include "tests/small_actor.h"
+#include "tracking/track_eval.h"
+
+namespace hmc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Half the default image and focal length: the face and its dots image at
+// half size (dots ~4 px), so a frame renders in a fraction of the time.
+constexpr const char* kShotFlags =
+    "--rig.width 640 --rig.height 512 --rig.focal_px 350 --contact_frames 0 --video png "
+    "--threads 2";
+
+class TrackTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = FreshTestDir("hmc_track_test", 0);
+    const CliResult actor =
+        RunHmc(fmt::format("actor synth --out '{}' --grid_u 64 --grid_v 52", (dir_ / "actor").string()),
+               dir_);
+    ASSERT_EQ(actor.exit_code, 0) << actor.err;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static fs::path Shot(const std::string& name, int seed, int frames, const std::string& extra = "") {
+    const fs::path out = dir_ / name;
+    if (fs::exists(out / "dots_2d.csv")) return out;
+    const CliResult r = RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames {} --seed {} {} {}",
+                                           (dir_ / "actor").string(), out.string(), frames, seed,
+                                           kShotFlags, extra),
+                               dir_);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return out;
+  }
+  static CliResult Track(const fs::path& shot, const fs::path& out, const std::string& extra = "") {
+    return RunHmc(fmt::format("track --shot '{}' --calibration '{}' --actor '{}' --out '{}' {}",
+                              shot.string(), (shot / "calibration.yaml").string(),
+                              (dir_ / "actor").string(), out.string(), extra),
+                  dir_);
+  }
+  static fs::path dir_;
+};
+fs::path TrackTest::dir_;
+
+// Invariants of any tracks_2d.csv: one row per (frame, camera, marker) (the
+// reader enforces it), never two names on one dot.
+void ExpectNoDotNamedTwice(const std::vector<Track2d>& tracks) {
+  std::map<std::pair<int, std::string>, std::vector<Vec2>> by_view;
+  for (const Track2d& t : tracks) by_view[{t.frame, t.camera}].push_back(t.pixel);
+  for (const auto& [view, pixels] : by_view) {
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      for (size_t j = i + 1; j < pixels.size(); ++j) {
+        ASSERT_GT((pixels[i] - pixels[j]).norm(), 0.5) << "frame " << view.first << " " << view.second;
+      }
+    }
+  }
+}
+
+TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
+  for (int seed = 1; seed <= 3; ++seed) {
+    const fs::path shot = Shot(fmt::format("shot{}", seed), seed, 6);
+    const fs::path out = dir_ / fmt::format("track{}", seed) / "tracks_2d.csv";
+    const CliResult r = Track(shot, out, fmt::format("--diagnostics '{}'", (out.parent_path() / "d.json").string()));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::vector<Track2d> tracks = ReadTracks2dCsv(out);
+    ExpectNoDotNamedTwice(tracks);
+    const TrackScore s = ScoreTracks(tracks, ReadDots2dCsv(shot / "dots_2d.csv"));
+    RecordProperty(fmt::format("seed{}", seed), s.BriefReport());
+    std::printf("seed %d: %s\n", seed, s.BriefReport().c_str());
+    // Issue targets met at this size (docs/tracking.md has the full-size figures).
+    EXPECT_LE(s.median_px, 0.05) << "seed " << seed;
+    EXPECT_LE(s.p95_px, 0.15) << "seed " << seed;
+    EXPECT_LE(s.HiddenFraction(), 0.005) << "seed " << seed;
+    // Most full dots are named and almost no row is wrong (the targets
+    // 99.5 % and 0 are not met yet: docs/tracking.md, "What fails").
+    EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
+    EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
+    const nlohmann::json diag = nlohmann::json::parse(ReadFile(out.parent_path() / "d.json"));
+    EXPECT_EQ(diag["frames"].size(), 6u);
+    EXPECT_TRUE(diag["labelling"]["ok"].get<bool>());
+  }
+}
+
+TEST_F(TrackTest, LabelsAHeadOffsetFifteenMillimetresAndTenDegrees) {
+  for (int seed = 4; seed <= 5; ++seed) {
+    const fs::path shot = Shot(fmt::format("offset{}", seed), seed, 2,
+                               "--head_offset_mm 15 --head_offset_deg 10");
+    const fs::path out = dir_ / fmt::format("track_offset{}", seed) / "tracks_2d.csv";
+    const CliResult r = Track(shot, out);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const TrackScore s = ScoreTracks(ReadTracks2dCsv(out), ReadDots2dCsv(shot / "dots_2d.csv"));
+    std::printf("offset seed %d: %s\n", seed, s.BriefReport().c_str());
+    EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
+    EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
+  }
+}
+
+// Paints skin over one named dot in frames 3 and 4 of cam0: it has no row
+// there, and is named again (at the clean run's place) from frame 5 on.
+TEST_F(TrackTest, AHiddenDotIsNotReportedAndIsReacquired) {
+  const fs::path clean_shot = Shot("shot1", 1, 6);
+  const fs::path clean = dir_ / "track1" / "tracks_2d.csv";
+  if (!fs::exists(clean)) {
+    ASSERT_EQ(Track(clean_shot, clean).exit_code, 0);
+  }
+  const std::vector<Track2d> reference = ReadTracks2dCsv(clean);
+  // A marker named in cam0 in every frame.
+  std::map<std::string, std::map<int, Vec2>> by_marker;
+  for (const Track2d& t : reference) {
+    if (t.camera == "cam0") by_marker[t.marker][t.frame] = t.pixel;
+  }
+  std::string marker;
+  for (const auto& [name, frames] : by_marker) {
+    if (frames.size() == 6 && name.rfind("cheek", 0) == 0) {
+      marker = name;
+      break;
+    }
+  }
+  ASSERT_FALSE(marker.empty());
+  const fs::path shot = dir_ / "hidden";
+  fs::remove_all(shot);
+  fs::create_directories(shot);
+  fs::copy(clean_shot, shot, fs::copy_options::recursive);
+  for (int frame : {3, 4}) {
+    const fs::path png = shot / "cam0" / fmt::format("frame_{:06d}.png", frame);
+    cv::Mat image = cv::imread(png.string(), cv::IMREAD_GRAYSCALE);
+    const Vec2 p = by_marker[marker][frame];
+    const cv::Point centre(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+    // Skin level: the median of a ring around the dot.
+    std::vector<uint8_t> ring;
+    for (int a = 0; a < 32; ++a) {
+      const int x = centre.x + static_cast<int>(std::lround(9 * std::cos(a * M_PI / 16)));
+      const int y = centre.y + static_cast<int>(std::lround(9 * std::sin(a * M_PI / 16)));
+      ring.push_back(image.at<uint8_t>(y, x));
+    }
+    std::nth_element(ring.begin(), ring.begin() + 16, ring.end());
+    cv::circle(image, centre, 5, cv::Scalar(ring[16]), -1);
+    ASSERT_TRUE(cv::imwrite(png.string(), image));
+  }
+  const fs::path out = dir_ / "track_hidden" / "tracks_2d.csv";
+  ASSERT_EQ(Track(shot, out).exit_code, 0);
+  std::map<int, Vec2> rows;
+  for (const Track2d& t : ReadTracks2dCsv(out)) {
+    if (t.camera == "cam0" && t.marker == marker) rows[t.frame] = t.pixel;
+  }
+  EXPECT_EQ(rows.count(3), 0u) << marker;
+  EXPECT_EQ(rows.count(4), 0u) << marker;
+  for (int frame : {5, 6}) {
+    ASSERT_EQ(rows.count(frame), 1u) << marker << " not re-acquired at frame " << frame;
+    EXPECT_LT((rows[frame] - by_marker[marker][frame]).norm(), 1e-6) << marker;
+  }
+}
+
+TEST_F(TrackTest, ACorruptFrameIsSkippedAndTrackingGoesOn) {
+  const fs::path clean_shot = Shot("shot2", 2, 6);
+  const fs::path shot = dir_ / "corrupt";
+  fs::remove_all(shot);
+  fs::create_directories(shot);
+  fs::copy(clean_shot, shot, fs::copy_options::recursive);
+  WriteFileAtomic(shot / "cam1" / "frame_000003.png", std::string("not a png"));
+  const fs::path out = dir_ / "track_corrupt" / "tracks_2d.csv";
+  const fs::path diag_path = out.parent_path() / "d.json";
+  const CliResult r = Track(shot, out, fmt::format("--diagnostics '{}'", diag_path.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json diag = nlohmann::json::parse(ReadFile(diag_path));
+  bool skipped = false;
+  for (const auto& f : diag["frames"]) {
+    if (f["frame"] == 3) skipped = f["cameras"]["cam1"]["skipped"].get<bool>();
+  }
+  EXPECT_TRUE(skipped);
+  std::map<int, int> cam1_rows, cam0_rows;
+  for (const Track2d& t : ReadTracks2dCsv(out)) ++(t.camera == "cam1" ? cam1_rows : cam0_rows)[t.frame];
+  EXPECT_EQ(cam1_rows.count(3), 0u);
+  EXPECT_GT(cam0_rows[3], 20);
+  // Frames after the broken one are tracked as well as before it.
+  for (int frame : {4, 5, 6}) EXPECT_GE(cam1_rows[frame], 0.9 * cam1_rows[2]) << "frame " << frame;
+}
+
+TEST_F(TrackTest, WrongSizeOrUnreadableFootageIsRefusedWithTheFileNamed) {
+  const fs::path shot = Shot("shot3", 3, 6);
+  const fs::path junk = dir_ / "junk.mkv";
+  WriteFileAtomic(junk, std::string("this is not a video"));
+  CliResult r = Track(shot, dir_ / "refused" / "tracks_2d.csv", fmt::format("--cam0 '{}'", junk.string()));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("junk.mkv"), std::string::npos) << r.err;
+  // cam1 from a shot of another size.
+  const fs::path small = dir_ / "small_cam1";
+  fs::create_directories(small);
+  for (int frame = 1; frame <= 6; ++frame) {
+    cv::Mat image = cv::imread((shot / "cam1" / fmt::format("frame_{:06d}.png", frame)).string(),
+                               cv::IMREAD_GRAYSCALE);
+    cv::Mat half;
+    cv::resize(image, half, cv::Size(320, 256));
+    ASSERT_TRUE(cv::imwrite((small / fmt::format("frame_{:06d}.png", frame)).string(), half));
+  }
+  r = Track(shot, dir_ / "refused" / "tracks_2d.csv", fmt::format("--cam1 '{}'", small.string()));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("small_cam1"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "refused" / "tracks_2d.csv"));
+}
+
+TEST_F(TrackTest, UndistortWritesPinholeFramesWithTheTracksDrawn) {
+  const fs::path shot = Shot("shot1", 1, 6);
+  const fs::path tracks = dir_ / "track1" / "tracks_2d.csv";
+  if (!fs::exists(tracks)) {
+    ASSERT_EQ(Track(shot, tracks).exit_code, 0);
+  }
+  const fs::path out = dir_ / "undistorted";
+  const CliResult r = RunHmc(fmt::format("undistort --shot '{}' --calibration '{}' --out '{}' --camera cam0 "
+                                         "--fov-deg 100 --tracks '{}' --frames 1:2",
+                                         shot.string(), (shot / "calibration.yaml").string(),
+                                         out.string(), tracks.string()),
+                             dir_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const cv::Mat image = cv::imread((out / "cam0" / "frame_000001.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, 640);
+  EXPECT_EQ(image.rows, 512);
+  EXPECT_FALSE(fs::exists(out / "cam1"));
+  EXPECT_FALSE(fs::exists(out / "cam0" / "frame_000003.png"));
+}
+
+}  // namespace
+}  // namespace hmc

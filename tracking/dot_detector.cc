@@ -1,0 +1,305 @@
+#include "tracking/dot_detector.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace hmc {
+
+void DotDetectorOptions::Register(OptionFields *fields) {
+  fields->Add("polarity", &polarity, "dark (paint darker than the skin) | bright");
+  fields->Add("dot_size_px", &dot_size_px,
+              "expected dot diameter (px; 0 = measured at the reference frame)");
+  fields->Add("min_contrast", &min_contrast,
+              "relative darkening (or brightening) of a dot pixel vs the local mean");
+  fields->Add("min_step", &min_step,
+              "smallest absolute darkening of a dot pixel (fraction of full scale)");
+  fields->Add("min_size", &min_size, "smallest equivalent diameter (fraction of the expected)");
+  fields->Add("max_size", &max_size, "largest equivalent diameter (fraction of the expected)");
+  fields->Add("max_elongation", &max_elongation,
+              "largest ratio of the blob's axes (a disc seen at 78 deg)");
+  fields->Add("min_fill", &min_fill, "smallest fraction of the blob's moment ellipse covered");
+  fields->Add("background_scale", &background_scale, "box of the local mean (dot diameters)");
+  fields->Add("border_px", &border_px, "clearance from the image border (px)");
+}
+
+bool DotDetectorOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const char *what) {
+    spdlog::error("detect options: {}", what);
+    ok = false;
+  };
+  if (polarity != "dark" && polarity != "bright") fail("polarity must be dark or bright");
+  if (!(dot_size_px == 0 || (dot_size_px >= 1.5 && dot_size_px <= 40))) {
+    fail("dot_size_px must be 0 or in [1.5, 40]");
+  }
+  if (!(min_contrast > 0 && min_contrast < 1)) fail("min_contrast must be in (0, 1)");
+  if (!(min_step >= 0 && min_step < 1)) fail("min_step must be in [0, 1)");
+  if (!(min_size > 0 && min_size < 1 && max_size > 1)) fail("need 0 < min_size < 1 < max_size");
+  if (!(max_elongation >= 1)) fail("max_elongation must be >= 1");
+  if (!(min_fill >= 0 && min_fill < 1)) fail("min_fill must be in [0, 1)");
+  if (!(background_scale >= 2)) fail("background_scale must be >= 2");
+  if (border_px < 0) fail("border_px must be >= 0");
+  return ok;
+}
+
+namespace {
+
+cv::Mat AsFloat(const cv::Mat &grey) {
+  if (grey.type() == CV_32F) return grey;
+  cv::Mat out;
+  grey.convertTo(out, CV_32F, grey.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
+  return out;
+}
+
+struct Refined {
+  bool ok = false;
+  Vec2 centre = Vec2::Zero();
+  double contrast = 0;
+  double elongation = 1;
+};
+
+// Background plane on an annulus, then the iterated centroid of the
+// relative darkening (file comment, step 3). sign = +1 dark, -1 bright.
+// Relative darkening below this is skin texture (the albedo varies by about
+// +-10 %), not paint: it is subtracted before the centroid, so texture
+// outside the dot carries no weight while the disc's (symmetric)
+// anti-aliased rim keeps a symmetric weight.
+constexpr double kTextureFloor = 0.2;
+
+// A dot pixel's darkening, in sensor-noise sigmas (a 5-sigma pixel is a
+// 1-in-3.5-million event of Gaussian noise).
+constexpr double kNoiseSigmas = 5;
+
+// Largest fraction of the background ring that may be darker than 85 % of
+// its median.
+constexpr double kMaxRingIntrusion = 0.5;
+
+// Pixels of other blobs (labels other than 0 and `own`) are left out of
+// both the background ring and the centroid.
+Refined RefineCentre(const cv::Mat &image, const cv::Mat &labels, int own, Vec2 centre,
+                     double radius, double sign) {
+  Refined out;
+  const double r_in = radius + 1.5, r_out = radius + 3.5;
+  const double window = radius + 1.0;
+  for (int iteration = 0; iteration < 3; ++iteration) {
+    const int x0 = static_cast<int>(std::floor(centre.x() - r_out));
+    const int x1 = static_cast<int>(std::ceil(centre.x() + r_out));
+    const int y0 = static_cast<int>(std::floor(centre.y() - r_out));
+    const int y1 = static_cast<int>(std::ceil(centre.y() + r_out));
+    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return out;
+    std::vector<float> ring;
+    std::vector<Eigen::Vector3d> ring_points;
+    for (int y = y0; y <= y1; ++y) {
+      const float *row = image.ptr<float>(y);
+      const int *label = labels.ptr<int>(y);
+      for (int x = x0; x <= x1; ++x) {
+        const double d = std::hypot(x - centre.x(), y - centre.y());
+        if (d >= r_in && d <= r_out && label[x] == 0) {
+          ring.push_back(row[x]);
+          ring_points.emplace_back(x - centre.x(), y - centre.y(), row[x]);
+        }
+      }
+    }
+    if (ring.size() < 8) return out;
+    std::vector<float> sorted = ring;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    if (!(median > 1e-4)) return out;
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    int intruded = 0;
+    for (const Eigen::Vector3d &p : ring_points) {
+      // Drop intrusions of the dot's own polarity (a neighbour, a crease).
+      if (sign > 0 ? p.z() < 0.85 * median : p.z() > median / 0.85) {
+        ++intruded;
+        continue;
+      }
+      const Eigen::Vector3d a(1, p.x(), p.y());
+      normal += a * a.transpose();
+      rhs += a * p.z();
+    }
+    // Skin must surround a painted dot: where much of the ring is dark
+    // (the face's silhouette, the lip line, an eyelid), the dot is cut by
+    // an occluding edge and its centroid is not the dot's.
+    if (intruded > kMaxRingIntrusion * ring_points.size()) return out;
+    const Eigen::Vector3d plane = normal.ldlt().solve(rhs);
+    if (!plane.allFinite()) return out;
+    double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    int count = 0;
+    for (int y = y0; y <= y1; ++y) {
+      const float *row = image.ptr<float>(y);
+      const int *label = labels.ptr<int>(y);
+      for (int x = x0; x <= x1; ++x) {
+        const double dx = x - centre.x(), dy = y - centre.y();
+        if (dx * dx + dy * dy > window * window) continue;
+        if (label[x] != 0 && label[x] != own) continue;
+        const double b = plane(0) + plane(1) * dx + plane(2) * dy;
+        if (!(b > 1e-4)) continue;
+        const double w = std::max(0.0, sign * (b - row[x]) / b - kTextureFloor);
+        sw += w;
+        sx += w * dx;
+        sy += w * dy;
+        sxx += w * dx * dx;
+        syy += w * dy * dy;
+        sxy += w * dx * dy;
+        ++count;
+      }
+    }
+    if (!(sw > 0) || count == 0) return out;
+    const Vec2 shift(sx / sw, sy / sw);
+    centre += shift;
+    const double cxx = sxx / sw - shift.x() * shift.x();
+    const double cyy = syy / sw - shift.y() * shift.y();
+    const double cxy = sxy / sw - shift.x() * shift.y();
+    const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+    const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+    const double l1 = tr / 2 + disc, l2 = tr / 2 - disc;
+    out.elongation = l2 > 1e-9 ? std::sqrt(l1 / l2) : 1e9;
+    out.contrast = sw / (M_PI * radius * radius) + kTextureFloor;
+    if (shift.norm() < 1e-3) break;
+  }
+  out.ok = true;
+  out.centre = centre;
+  return out;
+}
+
+// The sensor noise sigma, from horizontal neighbour differences on lit
+// pixels (every 4th row): for independent noise, I(x+1) - I(x) has std
+// sqrt(2) sigma, and its median absolute value is 0.6745 of that std.
+double EstimateNoise(const cv::Mat &image) {
+  std::vector<float> diffs;
+  for (int y = 0; y < image.rows; y += 4) {
+    const float *row = image.ptr<float>(y);
+    for (int x = 0; x + 1 < image.cols; x += 2) {
+      if (row[x] > 0.1f) diffs.push_back(std::abs(row[x + 1] - row[x]));
+    }
+  }
+  if (diffs.size() < 100) return 0;
+  std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
+  return diffs[diffs.size() / 2] / (0.6745 * std::sqrt(2.0));
+}
+
+std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &options,
+                                 double dot_size_px, double min_d, double max_d) {
+  const cv::Mat image = AsFloat(grey);
+  // A dot pixel is darker than the local mean by at least min_step and by
+  // kNoiseSigmas noise sigmas (noise blobs are not dots).
+  const double step = std::max(options.min_step, kNoiseSigmas * EstimateNoise(image));
+  const double sign = options.polarity == "bright" ? -1 : 1;
+  int box = static_cast<int>(std::lround(options.background_scale * dot_size_px)) | 1;
+  box = std::max(box, 7);
+  cv::Mat mean;
+  cv::boxFilter(image, mean, CV_32F, cv::Size(box, box), cv::Point(-1, -1), true,
+                cv::BORDER_REPLICATE);
+  std::vector<DotDetection> out;
+  // Two levels: the blobs at min_contrast, then at twice it, which splits
+  // a dot from a fainter dark feature it touches (an eyelid crease, the lip
+  // line); a second-level blob counts only where the first found none.
+  const double levels[2] = {options.min_contrast, std::min(0.9, 2 * options.min_contrast)};
+  size_t first_count = 0;
+  for (int level = 0; level < 2; ++level) {
+    const double contrast = levels[level];
+    if (level == 1) first_count = out.size();
+    cv::Mat mask, limit;
+    if (sign > 0) {
+      const cv::Mat relative = mean * (1 - contrast), absolute = mean - step;
+      cv::min(relative, absolute, limit);
+      cv::compare(image, limit, mask, cv::CMP_LT);
+    } else {
+      const cv::Mat relative = mean * (1 + contrast), absolute = mean + step;
+      cv::max(relative, absolute, limit);
+      cv::compare(image, limit, mask, cv::CMP_GT);
+    }
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+    const double min_area = std::max(2.0, M_PI / 4 * min_d * min_d / options.max_elongation);
+    const double max_area = M_PI / 4 * max_d * max_d;
+    const int border = options.border_px;
+    for (int i = 1; i < n; ++i) {
+      const int area = stats.at<int>(i, cv::CC_STAT_AREA);
+      if (area < min_area || area > max_area) continue;
+      const int left = stats.at<int>(i, cv::CC_STAT_LEFT), top = stats.at<int>(i, cv::CC_STAT_TOP);
+      const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+      // Shape of the blob from its binary second moments: an ellipse of
+      // semi-axes 2 sqrt(lambda) has those moments.
+      double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+      for (int y = top; y < top + h; ++y) {
+        const int *row = labels.ptr<int>(y);
+        for (int x = left; x < left + w; ++x) {
+          if (row[x] != i) continue;
+          sx += x;
+          sy += y;
+          sxx += static_cast<double>(x) * x;
+          syy += static_cast<double>(y) * y;
+          sxy += static_cast<double>(x) * y;
+        }
+      }
+      const double mx = sx / area, my = sy / area;
+      const double cxx = sxx / area - mx * mx + 1.0 / 12, cyy = syy / area - my * my + 1.0 / 12;
+      const double cxy = sxy / area - mx * my;
+      const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+      const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+      const double major = 4 * std::sqrt(tr / 2 + disc),
+                   minor = 4 * std::sqrt(std::max(1e-9, tr / 2 - disc));
+      // A painted disc seen at any angle is at most its diameter long (the
+      // lip line and lashes are longer), an ellipse (fill of its moment
+      // ellipse near 1), and not thinner than max_elongation.
+      if (major < min_d || major > max_d || major > options.max_elongation * minor) continue;
+      if (area < options.min_fill * M_PI / 4 * major * minor) continue;
+      const double radius = std::sqrt(area / M_PI);
+      const double margin = border + radius + 4.5;
+      const Vec2 start(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
+      if (start.x() < margin || start.y() < margin || start.x() + margin >= image.cols ||
+          start.y() + margin >= image.rows) {
+        continue;
+      }
+      const Refined refined = RefineCentre(image, labels, i, start, radius, sign);
+      if (!refined.ok) continue;
+      if ((refined.centre - start).norm() > radius + 1) continue;
+      DotDetection dot;
+      dot.pixel = refined.centre;
+      dot.diameter_px = major;
+      dot.contrast = refined.contrast;
+      dot.elongation = refined.elongation;
+      dot.score = std::clamp(refined.contrast / 0.5, 0.0, 1.0) *
+                  std::clamp(1.0 / refined.elongation, 0.0, 1.0);
+      if (level == 1) {
+        bool duplicate = false;
+        for (size_t j = 0; j < first_count && !duplicate; ++j) {
+          duplicate = (out[j].pixel - dot.pixel).norm() < 0.5 * dot_size_px;
+        }
+        if (duplicate) continue;
+      }
+      out.push_back(dot);
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const DotDetection &a, const DotDetection &b) {
+    return a.pixel.y() != b.pixel.y() ? a.pixel.y() < b.pixel.y() : a.pixel.x() < b.pixel.x();
+  });
+  return out;
+}
+
+}  // namespace
+
+std::vector<DotDetection> DetectDots(const cv::Mat &grey, const DotDetectorOptions &options,
+                                     double dot_size_px) {
+  return Detect(grey, options, dot_size_px, options.min_size * dot_size_px,
+                options.max_size * dot_size_px);
+}
+
+double MeasureDotSize(const cv::Mat &grey, const DotDetectorOptions &options) {
+  const std::vector<DotDetection> all = Detect(grey, options, 8.0, 1.6, 16.0);
+  std::vector<double> sizes;
+  for (const DotDetection &d : all) {
+    if (d.elongation < 1.4 && d.contrast > 1.5 * options.min_contrast)
+      sizes.push_back(d.diameter_px);
+  }
+  if (sizes.size() < 8) return 0;
+  std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+  return sizes[sizes.size() / 2];
+}
+
+}  // namespace hmc

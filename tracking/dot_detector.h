@@ -1,0 +1,78 @@
+// Painted-dot detection in an original (fisheye) frame, never a resampled
+// one (docs/tracking.md, "Detection").
+//
+// 1. Candidates: with B the local mean of the image over a box of
+//    `background_scale` dot diameters, a pixel belongs to a dark dot where
+//    I < (1 - c) B (bright dots: I > (1 + c) B), c = min_contrast, a
+//    relative darkening that does not depend on the lighting, and by at
+//    least `min_step` of full scale and 5 noise sigmas (the noise estimated
+//    from neighbour differences on lit pixels), so sensor noise, also in
+//    the unlit helmet interior, is not a dot. Connected
+//    components of that mask are the candidates.
+// 2. Rejection by size and shape: from the blob's binary second moments,
+//    the ellipse of the same moments (axes 4 sqrt(lambda_i)). A painted disc
+//    seen from any angle is an ellipse at most its diameter long: the long
+//    axis must be within [min_size, max_size] x the expected diameter, the
+//    axis ratio <= max_elongation and
+//    the blob must fill >= min_fill of its moment ellipse; plus clearance
+//    from the image border. This rejects nostrils, the mouth opening and eye
+//    sockets (too big), the lip line and lashes (too long), ragged shapes
+//    and isolated noise pixels (too small).
+// 3. Sub-pixel centre: the skin around the dot is fitted by a plane
+//    B(x, y) = a + b x + c y on an annulus (pixels darker than 85 % of the
+//    annulus median dropped), and the centre is the centroid of the
+//    relative darkening above the skin texture, w = max(0, (B - I) / B -
+//    0.2), over a disc 1 px larger than the blob's equivalent radius (the
+//    anti-aliased rim), iterated with the disc re-centred; pixels of other
+//    blobs are left out. Dividing by B makes w flat over the
+//    painted disc whatever the shading, so a light gradient does not pull
+//    the centroid; the centroid of a uniform anti-aliased disc is its area
+//    centroid, which is what dots_2d.csv's cx, cy give.
+// Score in [0, 1]: contrast (relative to 0.5) times roundness.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/options.h"
+#include "core/types.h"
+
+namespace hmc {
+
+struct DotDetectorOptions {
+  std::string polarity = "dark";  // dark (paint darker than the skin) | bright
+  double dot_size_px = 0;         // expected dot diameter (px; 0 = measured at the reference frame)
+  double min_contrast = 0.25;     // relative darkening (or brightening) of a dot pixel vs the local mean
+  double min_step = 0.03;         // smallest absolute darkening of a dot pixel (fraction of full scale)
+  double min_size = 0.45;         // smallest equivalent diameter (fraction of the expected)
+  double max_size = 1.9;          // largest equivalent diameter (fraction of the expected)
+  double max_elongation = 5;      // largest ratio of the blob's axes (a disc seen at 78 deg)
+  double min_fill = 0.6;          // smallest fraction of the blob's moment ellipse covered
+  double background_scale = 4;    // box of the local mean (dot diameters)
+  int border_px = 3;              // clearance from the image border (px)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct DotDetection {
+  Vec2 pixel = Vec2::Zero();  // sub-pixel centre (px, OpenCV pixel centres)
+  double diameter_px = 0;     // long axis of the thresholded blob (px)
+  double contrast = 0;        // mean relative darkening inside the dot
+  double elongation = 1;      // axis ratio of the darkening's second moments
+  double score = 0;           // quality in [0, 1]
+};
+
+// Detects dots of about `dot_size_px` diameter in `grey` (CV_8U, CV_16U or
+// CV_32F in [0, 1]). Sorted by y then x.
+std::vector<DotDetection> DetectDots(const cv::Mat& grey, const DotDetectorOptions& options,
+                                     double dot_size_px);
+
+// The dot diameter of a frame: detection with a wide size range (2 to 16
+// px), then the median diameter of the round, well-filled blobs. Returns 0
+// when fewer than 8 such blobs are found.
+double MeasureDotSize(const cv::Mat& grey, const DotDetectorOptions& options);
+
+}  // namespace hmc

@@ -1,0 +1,117 @@
+#include "tracking/dot_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+namespace hmc {
+namespace {
+
+// Skin with a shading gradient and noise; dark discs at random sub-pixel
+// centres, anti-aliased by 8 x 8 supersampling (their centroid is the
+// disc's centre up to the supersampling, < 0.005 px).
+struct Scene {
+  cv::Mat image;  // CV_8U
+  std::vector<Vec2> centres;
+};
+
+Scene MakeScene(int seed, double diameter, int count, double noise) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  const int w = 480, h = 360;
+  cv::Mat radiance(h, w, CV_64F);
+  const double gx = 0.3 * (u01(rng) - 0.5) / w, gy = 0.3 * (u01(rng) - 0.5) / h;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) radiance.at<double>(y, x) = 0.6 + gx * (x - w / 2) + gy * (y - h / 2);
+  }
+  Scene scene;
+  const double spacing = std::max(4 * diameter, 24.0);
+  for (double y = spacing; y < h - spacing && static_cast<int>(scene.centres.size()) < count; y += spacing) {
+    for (double x = spacing; x < w - spacing && static_cast<int>(scene.centres.size()) < count; x += spacing) {
+      scene.centres.emplace_back(x + u01(rng) - 0.5, y + u01(rng) - 0.5);
+    }
+  }
+  const double r = diameter / 2;
+  for (const Vec2& c : scene.centres) {
+    for (int y = static_cast<int>(c.y() - r - 2); y <= c.y() + r + 2; ++y) {
+      for (int x = static_cast<int>(c.x() - r - 2); x <= c.x() + r + 2; ++x) {
+        int inside = 0;
+        for (int sy = 0; sy < 8; ++sy) {
+          for (int sx = 0; sx < 8; ++sx) {
+            const double px = x - 0.5 + (sx + 0.5) / 8, py = y - 0.5 + (sy + 0.5) / 8;
+            inside += std::hypot(px - c.x(), py - c.y()) <= r;
+          }
+        }
+        const double coverage = inside / 64.0;
+        radiance.at<double>(y, x) *= 1 - coverage * (1 - 0.07 / 0.6);
+      }
+    }
+  }
+  scene.image.create(h, w, CV_8U);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const double v = 255 * radiance.at<double>(y, x) + noise * normal(rng);
+      scene.image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(std::lround(v));
+    }
+  }
+  return scene;
+}
+
+TEST(DotDetectorTest, CentresAreSubPixelAccurateOnShadedNoisySkin) {
+  DotDetectorOptions options;
+  for (int seed = 1; seed <= 4; ++seed) {
+    for (double diameter : {3.0, 6.0, 11.0}) {
+      const Scene scene = MakeScene(seed, diameter, 40, 1.0);
+      const std::vector<DotDetection> found = DetectDots(scene.image, options, diameter);
+      EXPECT_EQ(found.size(), scene.centres.size()) << "seed " << seed << " d " << diameter;
+      std::vector<double> errors;
+      for (const Vec2& c : scene.centres) {
+        double best = 1e9;
+        for (const DotDetection& d : found) best = std::min(best, (d.pixel - c).norm());
+        errors.push_back(best);
+      }
+      std::sort(errors.begin(), errors.end());
+      // 8-bit quantisation and read noise 1 on 3 to 11 px discs; the issue's
+      // targets for full dots (median 0.05 px, p95 0.15 px).
+      EXPECT_LT(errors[errors.size() / 2], 0.05) << "seed " << seed << " d " << diameter;
+      EXPECT_LT(errors[errors.size() * 95 / 100], 0.15) << "seed " << seed << " d " << diameter;
+    }
+  }
+}
+
+TEST(DotDetectorTest, SizeIsMeasuredAndNonDotsAreRejected) {
+  DotDetectorOptions options;
+  for (int seed = 1; seed <= 3; ++seed) {
+    const double diameter = 4 + 2 * seed;
+    Scene scene = MakeScene(seed, diameter, 20, 1.0);
+    EXPECT_NEAR(MeasureDotSize(scene.image, options), diameter, 0.2 * diameter);
+    // A long dark line (a lip line, a lash) and a big dark blob (a nostril).
+    cv::line(scene.image, cv::Point(10, 5), cv::Point(470, 8), cv::Scalar(15), 2);
+    cv::circle(scene.image, cv::Point(240, 352), 0, cv::Scalar(15), -1);
+    cv::ellipse(scene.image, cv::Point(460, 340), cv::Size(12, 12), 0, 0, 360, cv::Scalar(10), -1);
+    const std::vector<DotDetection> found = DetectDots(scene.image, options, diameter);
+    EXPECT_EQ(found.size(), scene.centres.size()) << "seed " << seed;
+    for (const DotDetection& d : found) {
+      EXPECT_GT(d.pixel.y(), 12);
+      EXPECT_GE(d.score, 0);
+      EXPECT_LE(d.score, 1);
+    }
+  }
+}
+
+TEST(DotDetectorTest, BrightDotsWithBrightPolarity) {
+  Scene scene = MakeScene(7, 6, 20, 1.0);
+  cv::Mat inverted = 255 - scene.image;
+  DotDetectorOptions options;
+  options.polarity = "bright";
+  EXPECT_EQ(DetectDots(inverted, options, 6).size(), scene.centres.size());
+  options.polarity = "dark";
+  EXPECT_EQ(DetectDots(inverted, options, 6).size(), 0u);
+}
+
+}  // namespace
+}  // namespace hmc

@@ -1,0 +1,620 @@
+#include "tracking/marker_tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <unordered_map>
+
+#include <Eigen/Geometry>
+#include <fmt/format.h>
+#include <opencv2/video/tracking.hpp>
+#include <spdlog/spdlog.h>
+
+#include "tracking/assignment.h"
+#include "tracking/stereo_rays.h"
+
+namespace hmc {
+
+void MarkerTrackerOptions::Register(OptionFields* fields) {
+  fields->Add("pair_gap_mm", &pair_gap_mm,
+              "stereo pairing: largest ray closest-approach distance (mm)");
+  fields->Add("max_offset_mm", &max_offset_mm, "head offset from rest the labelling must cover (mm)");
+  fields->Add("max_offset_deg", &max_offset_deg,
+              "head rotation from rest the labelling must cover (deg)");
+  fields->Add("triple_tolerance_mm", &triple_tolerance_mm,
+              "RANSAC: pairwise distance agreement of a triple (mm)");
+  fields->Add("inlier_mm", &inlier_mm, "registration inlier distance (mm)");
+  fields->Add("ransac_samples", &ransac_samples, "RANSAC triples of points tried");
+  fields->Add("name_gate", &name_gate,
+              "naming gate (fraction of the distance to the nearest other dot)");
+  fields->Add("track_gate", &track_gate,
+              "tracking gate (fraction of the distance to the nearest other dot)");
+  fields->Add("reacquire_gate", &reacquire_gate,
+              "re-acquisition gate (fraction of the nearest-dot distance)");
+  fields->Add("max_gate_px", &max_gate_px, "cap of every gate (px)");
+  fields->Add("ambiguity_ratio", &ambiguity_ratio,
+              "second-nearest detection at least this much farther");
+  fields->Add("epipolar_gap_mm", &epipolar_gap_mm,
+              "stereo swap check: largest ray gap of a named pair (mm)");
+  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection");
+  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
+  fields->Add("flow_check_px", &flow_check_px,
+              "largest forward-backward flow disagreement (px)");
+}
+
+bool MarkerTrackerOptions::Check() const {
+  bool ok = true;
+  auto need = [&](bool condition, const char* what) {
+    if (!condition) {
+      spdlog::error("track options: {}", what);
+      ok = false;
+    }
+  };
+  need(pair_gap_mm > 0, "pair_gap_mm must be > 0");
+  need(max_offset_mm >= 0 && max_offset_deg >= 0 && max_offset_deg < 60,
+       "max_offset_mm >= 0 and max_offset_deg in [0, 60) required");
+  need(triple_tolerance_mm > 0 && inlier_mm > 0, "triple_tolerance_mm and inlier_mm must be > 0");
+  need(ransac_samples >= 1, "ransac_samples must be >= 1");
+  need(name_gate > 0 && name_gate < 0.5, "name_gate must be in (0, 0.5)");
+  need(track_gate > 0 && track_gate < 0.5, "track_gate must be in (0, 0.5)");
+  need(reacquire_gate > 0 && reacquire_gate < 0.5, "reacquire_gate must be in (0, 0.5)");
+  need(max_gate_px > 0, "max_gate_px must be > 0");
+  need(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
+  need(epipolar_gap_mm > 0, "epipolar_gap_mm must be > 0");
+  need(neighbours >= 1, "neighbours must be >= 1");
+  need(flow_window >= 1 && flow_window <= 10, "flow_window must be in [1, 10]");
+  need(flow_check_px > 0, "flow_check_px must be > 0");
+  return ok;
+}
+
+MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours) {
+  MarkerLayout layout;
+  const MatX3d normals = VertexNormals(actor.neutral.V, actor.neutral.F);
+  for (const Marker& marker : actor.markers) {
+    layout.names.push_back(marker.name);
+    layout.positions.push_back(EvaluateSurfacePoint(marker.point, actor.neutral.F, actor.neutral.V));
+    const Vec3 n = EvaluateSurfacePoint(marker.point, actor.neutral.F, normals);
+    layout.normals.push_back(n.norm() > 0 ? Vec3(n.normalized()) : Vec3(0, 0, 1));
+  }
+  const int n = static_cast<int>(layout.positions.size());
+  layout.neighbours.resize(n);
+  for (int i = 0; i < n; ++i) {
+    std::vector<std::pair<double, int>> by_distance;
+    for (int j = 0; j < n; ++j) {
+      if (j != i) by_distance.push_back({(layout.positions[i] - layout.positions[j]).norm(), j});
+    }
+    std::sort(by_distance.begin(), by_distance.end());
+    for (int k = 0; k < std::min<int>(neighbours, by_distance.size()); ++k) {
+      layout.neighbours[i].push_back(by_distance[k].second);
+    }
+  }
+  return layout;
+}
+
+namespace {
+
+// Points hashed in cubes of `cell` mm for radius queries up to one cell.
+class PointGrid {
+ public:
+  PointGrid(const std::vector<Vec3>& points, double cell) : points_(points), cell_(cell) {
+    for (int i = 0; i < static_cast<int>(points.size()); ++i) cells_[Key(points[i])].push_back(i);
+  }
+  // Nearest point within `radius` (<= cell) of q, or -1.
+  int Nearest(const Vec3& q, double radius, double* distance) const {
+    int best = -1;
+    double best_d = radius;
+    const Eigen::Vector3i c = Cell(q);
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          auto it = cells_.find(Pack(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (int i : it->second) {
+            const double d = (points_[i] - q).norm();
+            if (d < best_d) {
+              best_d = d;
+              best = i;
+            }
+          }
+        }
+      }
+    }
+    if (distance) *distance = best_d;
+    return best;
+  }
+
+ private:
+  Eigen::Vector3i Cell(const Vec3& p) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)),
+                           static_cast<int>(std::floor(p.y() / cell_)),
+                           static_cast<int>(std::floor(p.z() / cell_)));
+  }
+  static int64_t Pack(const Eigen::Vector3i& c) {
+    return (static_cast<int64_t>(c.x() + (1 << 20)) << 42) ^
+           (static_cast<int64_t>(c.y() + (1 << 20)) << 21) ^ static_cast<int64_t>(c.z() + (1 << 20));
+  }
+  int64_t Key(const Vec3& p) const { return Pack(Cell(p)); }
+  const std::vector<Vec3>& points_;
+  double cell_;
+  std::unordered_map<int64_t, std::vector<int>> cells_;
+};
+
+Rigid3 FitRigid(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
+  Eigen::Matrix3Xd a(3, from.size()), b(3, to.size());
+  for (size_t i = 0; i < from.size(); ++i) {
+    a.col(i) = from[i];
+    b.col(i) = to[i];
+  }
+  Rigid3 out = Rigid3::Identity();
+  out.matrix() = Eigen::umeyama(a, b, false);
+  return out;
+}
+
+double AngleDeg(const Rigid3& t) {
+  return Eigen::AngleAxisd(t.linear()).angle() * 180 / M_PI;
+}
+
+int FlowWindow(double dot_size_px, double window) {
+  return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
+}
+
+std::vector<cv::Mat> FlowPyramid(const cv::Mat& image, int window) {
+  std::vector<cv::Mat> pyramid;
+  if (image.empty()) return pyramid;
+  cv::Mat grey8 = image;
+  if (image.depth() == CV_16U) image.convertTo(grey8, CV_8U, 1.0 / 257);
+  cv::buildOpticalFlowPyramid(grey8, pyramid, cv::Size(window, window), 3);
+  return pyramid;
+}
+
+}  // namespace
+
+MarkerTracker::MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout,
+                             const MarkerTrackerOptions& options)
+    : rig_(rig), layout_(layout), options_(options) {
+  state_.assign(rig_.cameras.size(), std::vector<DotState>(layout_.names.size()));
+}
+
+void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detections) {
+  labelling_ = ReferenceLabelling();
+  if (rig_.cameras.size() < 2 || detections.size() < 2) {
+    labelling_.reason = "two cameras are needed";
+    return;
+  }
+  std::vector<Ray3> rays0, rays1;
+  for (const DotDetection& d : detections[0]) rays0.push_back(PixelRay(rig_.cameras[0], d.pixel));
+  for (const DotDetection& d : detections[1]) rays1.push_back(PixelRay(rig_.cameras[1], d.pixel));
+  std::vector<Vec3> points;
+  std::vector<std::pair<int, int>> pair_of;
+  std::vector<int> partners0(rays0.size(), 0), partners1(rays1.size(), 0);
+  for (size_t i = 0; i < rays0.size(); ++i) {
+    for (size_t j = 0; j < rays1.size(); ++j) {
+      const RayApproach a = ClosestApproach(rays0[i], rays1[j]);
+      if (!a.ok || a.gap > options_.pair_gap_mm) continue;
+      points.push_back(a.midpoint);
+      pair_of.push_back({static_cast<int>(i), static_cast<int>(j)});
+      ++partners0[i];
+      ++partners1[j];
+    }
+  }
+  labelling_.candidate_points = static_cast<int>(points.size());
+  if (points.size() < 3) {
+    labelling_.reason = fmt::format("only {} stereo pairs", points.size());
+    return;
+  }
+  std::vector<int> unique;
+  for (size_t p = 0; p < points.size(); ++p) {
+    if (partners0[pair_of[p].first] == 1 && partners1[pair_of[p].second] == 1) {
+      unique.push_back(static_cast<int>(p));
+    }
+  }
+  if (unique.size() < 3) {
+    unique.resize(points.size());
+    for (size_t p = 0; p < points.size(); ++p) unique[p] = static_cast<int>(p);
+  }
+  const std::vector<Vec3>& M = layout_.positions;
+  const int num_markers = static_cast<int>(M.size());
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& m : M) centre += m / num_markers;
+  const double search_mm = 1.5 * options_.max_offset_mm + 2;
+  const double search_deg = 1.5 * options_.max_offset_deg + 2;
+  const double search_sin = std::sin(std::min(90.0, search_deg) * M_PI / 180);
+  const PointGrid grid(points, options_.inlier_mm);
+
+  // Markers matched by a pose, and their squared residuals.
+  auto score = [&](const Rigid3& helmet_from_head, double* sum_sq) {
+    int count = 0;
+    *sum_sq = 0;
+    for (const Vec3& m : M) {
+      double d = 0;
+      if (grid.Nearest(helmet_from_head * m, options_.inlier_mm, &d) >= 0) {
+        ++count;
+        *sum_sq += d * d;
+      }
+    }
+    return count;
+  };
+  auto plausible = [&](const Rigid3& t) {
+    return AngleDeg(t) <= search_deg && (t * centre - centre).norm() <= search_mm + 1e-9;
+  };
+  Rigid3 best = Rigid3::Identity();
+  double best_sq = 0;
+  int best_count = score(best, &best_sq);
+  std::mt19937 rng(12345);
+  std::uniform_int_distribution<int> pick(0, static_cast<int>(unique.size()) - 1);
+  // Candidate markers of a point: where it may be under the prior.
+  auto candidates = [&](const Vec3& p) {
+    std::vector<int> out;
+    for (int k = 0; k < num_markers; ++k) {
+      const double reach = search_mm + search_sin * (M[k] - centre).norm() + options_.inlier_mm;
+      if ((M[k] - p).norm() <= reach) out.push_back(k);
+    }
+    return out;
+  };
+  const double tol = options_.triple_tolerance_mm;
+  for (int s = 0; s < options_.ransac_samples; ++s) {
+    const int a = unique[pick(rng)], b = unique[pick(rng)], c = unique[pick(rng)];
+    const Vec3 &pa = points[a], &pb = points[b], &pc = points[c];
+    const double dab = (pa - pb).norm(), dac = (pa - pc).norm(), dbc = (pb - pc).norm();
+    if (dab < 15 || dac < 15 || dbc < 15) continue;
+    if ((pb - pa).cross(pc - pa).norm() < 0.2 * dab * dac) continue;  // nearly collinear
+    const std::vector<int> ca = candidates(pa), cb = candidates(pb), cc = candidates(pc);
+    for (int ka : ca) {
+      for (int kb : cb) {
+        if (kb == ka || std::abs((M[ka] - M[kb]).norm() - dab) > tol) continue;
+        for (int kc : cc) {
+          if (kc == ka || kc == kb) continue;
+          if (std::abs((M[ka] - M[kc]).norm() - dac) > tol ||
+              std::abs((M[kb] - M[kc]).norm() - dbc) > tol) {
+            continue;
+          }
+          const Rigid3 t = FitRigid({M[ka], M[kb], M[kc]}, {pa, pb, pc});
+          if (!plausible(t)) continue;
+          double sq = 0;
+          const int count = score(t, &sq);
+          if (count > best_count || (count == best_count && sq < best_sq)) {
+            best = t;
+            best_count = count;
+            best_sq = sq;
+          }
+        }
+      }
+    }
+  }
+  spdlog::debug("labelling: {} candidate points, {} unique, RANSAC best {} markers", points.size(),
+                unique.size(), best_count);
+  // ICP with mutual nearest neighbours, gate shrinking to inlier_mm / 2.
+  double gate = options_.inlier_mm;
+  int inliers = 0;
+  double rms = 0;
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    std::vector<int> nearest_point(num_markers, -1);
+    std::vector<double> nearest_d(num_markers, 0);
+    for (int k = 0; k < num_markers; ++k) {
+      nearest_point[k] = grid.Nearest(best * M[k], gate, &nearest_d[k]);
+    }
+    // Mutual: the point's nearest marker is k.
+    std::unordered_map<int, std::pair<double, int>> point_best;
+    for (int k = 0; k < num_markers; ++k) {
+      if (nearest_point[k] < 0) continue;
+      auto it = point_best.find(nearest_point[k]);
+      if (it == point_best.end() || nearest_d[k] < it->second.first) {
+        point_best[nearest_point[k]] = {nearest_d[k], k};
+      }
+    }
+    std::vector<Vec3> from, to;
+    double sum_sq = 0;
+    for (const auto& [p, dk] : point_best) {
+      from.push_back(M[dk.second]);
+      to.push_back(points[p]);
+      sum_sq += dk.first * dk.first;
+    }
+    if (from.size() < 3) break;
+    inliers = static_cast<int>(from.size());
+    rms = std::sqrt(sum_sq / inliers);
+    best = FitRigid(from, to);
+    gate = std::max(0.5 * options_.inlier_mm, 0.85 * gate);
+  }
+  labelling_.helmet_from_head = best;
+  labelling_.inliers = inliers;
+  labelling_.rms_mm = rms;
+  if (inliers < std::max(3, num_markers / 5)) {
+    labelling_.reason =
+        fmt::format("registration matched only {} of {} markers", inliers, num_markers);
+    return;
+  }
+  labelling_.ok = true;
+}
+
+void MarkerTracker::Match(int /*camera*/, const std::vector<DotDetection>& detections,
+                          const std::vector<Vec2>& prediction, const std::vector<char>& predicted,
+                          const std::vector<double>& gate_fraction, bool require_unambiguous_all,
+                          std::vector<int>* detection_of) const {
+  const int num_markers = static_cast<int>(prediction.size());
+  const int num_detections = static_cast<int>(detections.size());
+  // Spacing: distance to the nearest other prediction.
+  std::vector<double> gates(num_markers, 1e-9);
+  for (int k = 0; k < num_markers; ++k) {
+    if (!predicted[k]) continue;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < num_markers; ++j) {
+      if (j != k && predicted[j]) nearest = std::min(nearest, (prediction[j] - prediction[k]).norm());
+    }
+    gates[k] = std::min(options_.max_gate_px, gate_fraction[k] * nearest);
+  }
+  std::vector<AssignmentEdge> edges;
+  for (int k = 0; k < num_markers; ++k) {
+    if (!predicted[k] || (*detection_of)[k] >= 0) continue;
+    for (int d = 0; d < num_detections; ++d) {
+      const double dist = (detections[d].pixel - prediction[k]).norm();
+      if (dist < gates[k]) edges.push_back({k, d, dist});
+    }
+  }
+  // Detections already taken (earlier rounds) are not offered again.
+  std::vector<char> taken(num_detections, 0);
+  for (int k = 0; k < num_markers; ++k) {
+    if ((*detection_of)[k] >= 0) taken[(*detection_of)[k]] = 1;
+  }
+  edges.erase(std::remove_if(edges.begin(), edges.end(),
+                             [&](const AssignmentEdge& e) { return taken[e.col] != 0; }),
+              edges.end());
+  const std::vector<int> col = SolveGatedAssignment(num_markers, num_detections, edges, gates);
+  for (int k = 0; k < num_markers; ++k) {
+    if (col[k] < 0) continue;
+    const bool check = require_unambiguous_all || gate_fraction[k] < options_.track_gate;
+    if (check) {
+      const double d1 = (detections[col[k]].pixel - prediction[k]).norm();
+      double d2 = std::numeric_limits<double>::infinity();
+      for (int d = 0; d < num_detections; ++d) {
+        if (d != col[k]) d2 = std::min(d2, (detections[d].pixel - prediction[k]).norm());
+      }
+      if (d2 <= options_.ambiguity_ratio * d1 || d2 < gates[k]) continue;
+    }
+    (*detection_of)[k] = col[k];
+  }
+}
+
+void MarkerTracker::StereoCheck(const std::vector<std::vector<DotDetection>>& detections,
+                                std::vector<std::vector<int>>* detection_of,
+                                std::vector<CameraFrameTracks>* out) const {
+  if (detection_of->size() < 2) return;
+  for (size_t k = 0; k < layout_.names.size(); ++k) {
+    const int d0 = (*detection_of)[0][k], d1 = (*detection_of)[1][k];
+    if (d0 < 0 || d1 < 0) continue;
+    const RayApproach a = ClosestApproach(PixelRay(rig_.cameras[0], detections[0][d0].pixel),
+                                          PixelRay(rig_.cameras[1], detections[1][d1].pixel));
+    if (a.ok && a.gap <= options_.epipolar_gap_mm) continue;
+    (*detection_of)[0][k] = -1;
+    (*detection_of)[1][k] = -1;
+    ++(*out)[0].swaps_caught;
+    ++(*out)[1].swaps_caught;
+  }
+}
+
+void MarkerTracker::NameFromLayout(int c, const std::vector<DotDetection>& detections,
+                                   double gate_fraction, bool allow_uncorrected,
+                                   std::vector<int>* detection_of) const {
+  const int num_markers = static_cast<int>(layout_.names.size());
+  const HelmetCamera& hc = rig_.cameras[c];
+  const Rigid3 cam_from_head = hc.cam_from_helmet * helmet_from_head_;
+  std::vector<char> facing(num_markers, 0);
+  std::vector<Vec2> projection(num_markers, Vec2::Zero());
+  for (int k = 0; k < num_markers; ++k) {
+    const Vec3 p = cam_from_head * layout_.positions[k];
+    const Vec3 n = cam_from_head.linear() * layout_.normals[k];
+    Vec2 u;
+    if (!hc.camera.Project(p, &u) || !hc.camera.IsInImage(u)) continue;
+    facing[k] = n.dot(p.normalized()) < -0.1;
+    projection[k] = u;
+  }
+  const std::vector<double> fraction(num_markers, gate_fraction);
+  for (int round = 0; round < 4; ++round) {
+    std::vector<Vec2> prediction(num_markers, Vec2::Zero());
+    std::vector<char> predicted(num_markers, 0);
+    int before = 0;
+    for (int k = 0; k < num_markers; ++k) {
+      if ((*detection_of)[k] >= 0) {
+        // Named: where its dot is (it only shapes the others' gates).
+        prediction[k] = detections[(*detection_of)[k]].pixel;
+        predicted[k] = 1;
+        ++before;
+        continue;
+      }
+      if (!facing[k]) continue;
+      // The projection under the head pose, corrected by the mean residual
+      // of the named layout neighbours (the face is not at neutral).
+      Vec2 sum = Vec2::Zero();
+      int count = 0;
+      for (int j : layout_.neighbours[k]) {
+        if ((*detection_of)[j] < 0 || !facing[j]) continue;
+        sum += detections[(*detection_of)[j]].pixel - projection[j];
+        ++count;
+      }
+      if (count == 0 && !(allow_uncorrected && round == 0)) continue;
+      prediction[k] = projection[k] + (count > 0 ? Vec2(sum / count) : Vec2::Zero());
+      predicted[k] = 1;
+    }
+    Match(c, detections, prediction, predicted, fraction, true, detection_of);
+    const int after = static_cast<int>(
+        std::count_if(detection_of->begin(), detection_of->end(), [](int d) { return d >= 0; }));
+    if (after == before) break;
+  }
+}
+
+void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
+                                   const std::vector<std::vector<int>>& detection_of) {
+  if (detection_of.size() < 2) return;
+  std::vector<Vec3> from, to;
+  for (size_t k = 0; k < layout_.names.size(); ++k) {
+    const int d0 = detection_of[0][k], d1 = detection_of[1][k];
+    if (d0 < 0 || d1 < 0) continue;
+    const RayApproach a = ClosestApproach(PixelRay(rig_.cameras[0], detections[0][d0].pixel),
+                                          PixelRay(rig_.cameras[1], detections[1][d1].pixel));
+    if (!a.ok) continue;
+    from.push_back(layout_.positions[k]);
+    to.push_back(a.midpoint);
+  }
+  // Trimmed rigid fit: the expression moves some markers far from neutral.
+  for (int iteration = 0; iteration < 3 && from.size() >= 6; ++iteration) {
+    const Rigid3 t = FitRigid(from, to);
+    std::vector<double> residual(from.size());
+    for (size_t i = 0; i < from.size(); ++i) residual[i] = (t * from[i] - to[i]).norm();
+    std::vector<double> sorted = residual;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double keep = std::max(options_.inlier_mm, 2 * sorted[sorted.size() / 2]);
+    std::vector<Vec3> f2, t2;
+    for (size_t i = 0; i < from.size(); ++i) {
+      if (residual[i] <= keep) {
+        f2.push_back(from[i]);
+        t2.push_back(to[i]);
+      }
+    }
+    helmet_from_head_ = t;
+    if (f2.size() == from.size()) break;
+    from.swap(f2);
+    to.swap(t2);
+  }
+}
+
+std::vector<CameraFrameTracks> MarkerTracker::Start(
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images,
+    const std::vector<double>& dot_size_px) {
+  const int num_cameras = static_cast<int>(rig_.cameras.size());
+  const int num_markers = static_cast<int>(layout_.names.size());
+  std::vector<CameraFrameTracks> out(num_cameras);
+  state_.assign(num_cameras, std::vector<DotState>(num_markers));
+  dot_size_px_ = dot_size_px;
+  pyramid_.assign(num_cameras, {});
+  for (int c = 0; c < num_cameras; ++c) {
+    pyramid_[c] = FlowPyramid(images[c], FlowWindow(dot_size_px_[c], options_.flow_window));
+  }
+  Register(detections);
+  if (!labelling_.ok) return out;
+  std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
+  std::vector<std::vector<Vec2>> projection(num_cameras, std::vector<Vec2>(num_markers));
+  helmet_from_head_ = labelling_.helmet_from_head;
+  for (int c = 0; c < num_cameras; ++c) {
+    NameFromLayout(c, detections[c], options_.name_gate, true, &detection_of[c]);
+  }
+  StereoCheck(detections, &detection_of, &out);
+  for (int c = 0; c < num_cameras; ++c) {
+    out[c].detections = static_cast<int>(detections[c].size());
+    for (int k = 0; k < num_markers; ++k) {
+      const int d = detection_of[c][k];
+      if (d < 0) continue;
+      DotState& s = state_[c][k];
+      s.status = Status::kTracked;
+      s.has_position = true;
+      s.position = detections[c][d].pixel;
+      s.velocity.setZero();
+      out[c].marker.push_back(k);
+      out[c].pixel.push_back(detections[c][d].pixel);
+      out[c].score.push_back(detections[c][d].score);
+    }
+    out[c].unnamed = out[c].detections - static_cast<int>(out[c].marker.size());
+  }
+  return out;
+}
+
+std::vector<CameraFrameTracks> MarkerTracker::Step(
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images) {
+  const int num_cameras = static_cast<int>(rig_.cameras.size());
+  const int num_markers = static_cast<int>(layout_.names.size());
+  std::vector<CameraFrameTracks> out(num_cameras);
+  std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
+  std::vector<bool> present(num_cameras);
+  for (int c = 0; c < num_cameras; ++c) present[c] = !images[c].empty();
+  for (int c = 0; c < num_cameras; ++c) {
+    if (!present[c]) {
+      out[c].skipped = true;
+      pyramid_[c].clear();
+      continue;
+    }
+    const int window = FlowWindow(dot_size_px_[c], options_.flow_window);
+    std::vector<cv::Mat> pyramid = FlowPyramid(images[c], window);
+    // Flow of the tracked dots from the previous frame, checked backwards.
+    std::vector<int> flowed;
+    std::vector<cv::Point2f> from, to, back;
+    if (!pyramid_[c].empty()) {
+      for (int k = 0; k < num_markers; ++k) {
+        const DotState& s = state_[c][k];
+        if (s.status != Status::kTracked) continue;
+        flowed.push_back(k);
+        from.emplace_back(static_cast<float>(s.position.x()), static_cast<float>(s.position.y()));
+        to.emplace_back(static_cast<float>(s.position.x() + s.velocity.x()),
+                        static_cast<float>(s.position.y() + s.velocity.y()));
+      }
+    }
+    std::vector<char> flow_ok(num_markers, 0);
+    std::vector<Vec2> flow_to(num_markers);
+    if (!flowed.empty()) {
+      std::vector<uchar> status, back_status;
+      std::vector<float> error, back_error;
+      const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01);
+      cv::calcOpticalFlowPyrLK(pyramid_[c], pyramid, from, to, status, error,
+                               cv::Size(window, window), 3, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+      back = from;
+      cv::calcOpticalFlowPyrLK(pyramid, pyramid_[c], to, back, back_status, back_error,
+                               cv::Size(window, window), 3, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+      for (size_t i = 0; i < flowed.size(); ++i) {
+        const double disagreement = std::hypot(back[i].x - from[i].x, back[i].y - from[i].y);
+        if (status[i] && back_status[i] && disagreement <= options_.flow_check_px) {
+          flow_ok[flowed[i]] = 1;
+          flow_to[flowed[i]] = Vec2(to[i].x, to[i].y);
+        }
+      }
+    }
+    pyramid_[c] = std::move(pyramid);
+    std::vector<Vec2> prediction(num_markers);
+    std::vector<char> predicted(num_markers, 0);
+    std::vector<double> fraction(num_markers, options_.track_gate);
+    for (int k = 0; k < num_markers; ++k) {
+      const DotState& s = state_[c][k];
+      if (!s.has_position) continue;
+      if (s.status != Status::kTracked) continue;
+      predicted[k] = 1;
+      prediction[k] = flow_ok[k] ? flow_to[k] : Vec2(s.position + s.velocity);
+    }
+    Match(c, detections[c], prediction, predicted, fraction, false, &detection_of[c]);
+  }
+  StereoCheck(detections, &detection_of, &out);
+  // Re-acquisition: the lost and never-seen dots from the layout under the
+  // current head pose, corrected by their named neighbours.
+  UpdateHeadPose(detections, detection_of);
+  for (int c = 0; c < num_cameras; ++c) {
+    if (present[c]) NameFromLayout(c, detections[c], options_.reacquire_gate, false, &detection_of[c]);
+  }
+  StereoCheck(detections, &detection_of, &out);
+  for (int c = 0; c < num_cameras; ++c) {
+    if (!present[c]) continue;
+    out[c].detections = static_cast<int>(detections[c].size());
+    for (int k = 0; k < num_markers; ++k) {
+      DotState& s = state_[c][k];
+      const int d = detection_of[c][k];
+      if (d >= 0) {
+        const Vec2 p = detections[c][d].pixel;
+        if (s.status == Status::kTracked) {
+          s.velocity = p - s.position;
+        } else {
+          s.velocity.setZero();
+          ++out[c].reacquired;
+        }
+        s.status = Status::kTracked;
+        s.has_position = true;
+        s.position = p;
+        out[c].marker.push_back(k);
+        out[c].pixel.push_back(p);
+        out[c].score.push_back(detections[c][d].score);
+      } else if (s.status == Status::kTracked) {
+        s.status = Status::kLost;
+        s.velocity.setZero();
+        ++out[c].lost;
+      }
+    }
+    out[c].unnamed = out[c].detections - static_cast<int>(out[c].marker.size());
+  }
+  return out;
+}
+
+}  // namespace hmc

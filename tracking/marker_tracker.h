@@ -1,0 +1,155 @@
+// Naming and tracking the painted dots (docs/tracking.md):
+//
+// Labelling at the reference frame (Start):
+//   1. Stereo pairs: every cam0 x cam1 pair of detections whose rays pass
+//      within `pair_gap_mm` (stereo_rays.h) is a candidate 3D point (the
+//      midpoint). Pairs whose detections have no other partner are
+//      "unique" and seed the registration.
+//   2. Rigid registration of the actor's neutral marker layout (head space)
+//      to the candidate points: RANSAC over triples of unique points whose
+//      pairwise distances match a triple of markers (within
+//      `triple_tolerance_mm`), restricted to helmet_from_head within 1.5 x
+//      (max_offset_mm, max_offset_deg) of the identity (helmet space is head
+//      space at rest), scored by the markers with a candidate point within
+//      `inlier_mm`; then ICP with mutual nearest neighbours and a shrinking
+//      gate. Closed-form rigid fits: Umeyama 1991 (Eigen::umeyama).
+//   3. Names, per camera: each marker facing the camera is projected with
+//      the registered pose; a global assignment (tracking/assignment.h)
+//      matches projections to detections within a gate of `name_gate` x
+//      the distance to the nearest other projection. A match is kept only
+//      if unambiguous: the second-nearest detection is more than
+//      `ambiguity_ratio` x farther. Rounds follow in which an unnamed
+//      marker's projection is corrected by the mean residual of its named
+//      layout neighbours (the face is near, not at, neutral).
+// Tracking (Step), per camera:
+//   a tracked dot is predicted by pyramidal Lucas-Kanade flow of its
+//   neighbourhood from the previous frame (Bouguet 2000, OpenCV; kept only
+//   where the backward flow returns within `flow_check_px`), else at its
+//   position plus its last motion; the predictions are matched to the
+//   detections by one gated global assignment (two names never take one
+//   dot), the gate a fraction of the distance to the nearest other dot.
+//   Then the head pose is refitted (trimmed rigid fit of the layout to the
+//   markers named in both cameras) and the lost and never-seen dots are
+//   named as at the reference frame (step 3) with the tighter
+//   `reacquire_gate`: projection under the pose, corrected by the named
+//   neighbours' residuals, unambiguous matches only. A dot named in both
+//   cameras whose rays miss by more than `epipolar_gap_mm` is a swap: the
+//   name is dropped in both for the frame. A dot with no detection in its
+//   gate is hidden: no row, the track is lost until re-acquired.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/actor.h"
+#include "core/calibration.h"
+#include "core/options.h"
+#include "tracking/dot_detector.h"
+
+namespace hmc {
+
+struct MarkerTrackerOptions {
+  double pair_gap_mm = 1.0;          // stereo pairing: largest ray closest-approach distance (mm)
+  double max_offset_mm = 15;         // head offset from rest the labelling must cover (mm)
+  double max_offset_deg = 10;        // head rotation from rest the labelling must cover (deg)
+  double triple_tolerance_mm = 3;    // RANSAC: pairwise distance agreement of a triple (mm)
+  double inlier_mm = 2.5;            // registration inlier distance (mm)
+  int ransac_samples = 600;          // RANSAC triples of points tried
+  double name_gate = 0.4;            // naming gate (fraction of the distance to the nearest other dot)
+  double track_gate = 0.3;           // tracking gate (fraction of the distance to the nearest other dot)
+  double reacquire_gate = 0.2;       // re-acquisition gate (fraction of the nearest-dot distance)
+  double max_gate_px = 25;           // cap of every gate (px)
+  double ambiguity_ratio = 2;        // second-nearest detection at least this much farther
+  double epipolar_gap_mm = 1.5;      // stereo swap check: largest ray gap of a named pair (mm)
+  int neighbours = 6;                // layout neighbours whose residuals correct a projection
+  double flow_window = 3;            // Lucas-Kanade window (dot diameters)
+  double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// The actor's neutral marker layout in head space.
+struct MarkerLayout {
+  std::vector<std::string> names;
+  std::vector<Vec3> positions;            // head space (mm)
+  std::vector<Vec3> normals;              // unit surface normals
+  std::vector<std::vector<int>> neighbours;  // nearest markers on the neutral, nearest first
+};
+MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours);
+
+// One camera's result for one frame.
+struct CameraFrameTracks {
+  std::vector<int> marker;     // per named dot: marker index
+  std::vector<Vec2> pixel;     // its detection's centre
+  std::vector<double> score;   // its detection's score
+  int detections = 0;
+  int unnamed = 0;             // detections left without a name
+  int lost = 0;                // tracks that ended this frame (dot hidden or not found)
+  int reacquired = 0;          // names given to dots that were lost or never seen
+  int swaps_caught = 0;        // names dropped by the stereo check
+  bool skipped = false;        // the camera's image was missing
+};
+
+struct ReferenceLabelling {
+  bool ok = false;
+  std::string reason;          // why not, when !ok
+  Rigid3 helmet_from_head = Rigid3::Identity();
+  int candidate_points = 0;    // stereo pairs within the gap
+  int inliers = 0;             // markers matched by the registration
+  double rms_mm = 0;           // registration residual over the inliers
+};
+
+class MarkerTracker {
+ public:
+  MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout, const MarkerTrackerOptions& options);
+
+  // Labels the reference frame (file comment). Per camera the named dots;
+  // labelling() tells how the registration went.
+  // images: per camera the frame (CV_8U or CV_16U grey) the detections
+  // come from; dot_size_px: per camera, sets the flow window.
+  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections,
+                                       const std::vector<cv::Mat>& images,
+                                       const std::vector<double>& dot_size_px);
+  // The next frame; a camera whose image is missing has an empty image.
+  std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& detections,
+                                      const std::vector<cv::Mat>& images);
+
+  const ReferenceLabelling& labelling() const { return labelling_; }
+
+ private:
+  enum class Status { kNone, kTracked, kLost };
+  struct DotState {
+    Status status = Status::kNone;
+    bool has_position = false;
+    Vec2 position = Vec2::Zero();
+    Vec2 velocity = Vec2::Zero();
+  };
+  void Register(const std::vector<std::vector<DotDetection>>& detections);
+  // Gated assignment of predictions to detections; fills `tracks`.
+  void Match(int camera, const std::vector<DotDetection>& detections,
+             const std::vector<Vec2>& prediction, const std::vector<char>& predicted,
+             const std::vector<double>& gate_fraction, bool require_unambiguous_all,
+             std::vector<int>* detection_of) const;
+  // Names unnamed markers of camera c from the layout under
+  // helmet_from_head_ (file comment, step 3), in rounds.
+  void NameFromLayout(int c, const std::vector<DotDetection>& detections, double gate_fraction,
+                      bool allow_uncorrected, std::vector<int>* detection_of) const;
+  // helmet_from_head_ from the markers named in both cameras (trimmed fit).
+  void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
+                      const std::vector<std::vector<int>>& detection_of);
+  void StereoCheck(const std::vector<std::vector<DotDetection>>& detections,
+                   std::vector<std::vector<int>>* detection_of,
+                   std::vector<CameraFrameTracks>* out) const;
+
+  HelmetRig rig_;
+  MarkerLayout layout_;
+  MarkerTrackerOptions options_;
+  ReferenceLabelling labelling_;
+  std::vector<std::vector<DotState>> state_;  // [camera][marker]
+  std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
+  std::vector<double> dot_size_px_;
+  Rigid3 helmet_from_head_ = Rigid3::Identity();
+};
+
+}  // namespace hmc

@@ -1,0 +1,96 @@
+#include "tracking/track_eval.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <tuple>
+
+#include <fmt/format.h>
+
+namespace hmc {
+
+std::string TrackScore::BriefReport() const {
+  return fmt::format(
+      "full: median {:.4f} px, p95 {:.4f} px, max {:.3f} px, named {:.2f} % of {}; partial "
+      "named {:.2f} % of {}; wrong names {} of {} rows ({:.3f} %); rows on hidden dots {} of {} "
+      "({:.2f} %)",
+      median_px, p95_px, max_px, 100 * FullRecall(), full, 100 * PartialRecall(), partial, wrong,
+      rows, 100 * WrongFraction(), hidden_rows, hidden, 100 * HiddenFraction());
+}
+
+namespace {
+
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const double pos = q * (v.size() - 1);
+  const size_t i = static_cast<size_t>(std::floor(pos));
+  const double t = pos - i;
+  return i + 1 < v.size() ? (1 - t) * v[i] + t * v[i + 1] : v[i];
+}
+
+}  // namespace
+
+TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot2dTruth>& truth,
+                       double wrong_px) {
+  TrackScore score;
+  int first = std::numeric_limits<int>::max();
+  std::map<std::tuple<int, std::string, std::string>, const Track2d*> by_key;
+  for (const Track2d& t : tracks) {
+    first = std::min(first, t.frame);
+    by_key[{t.frame, t.camera, t.marker}] = &t;
+  }
+  std::map<std::tuple<int, std::string, std::string>, const Dot2dTruth*> truth_by_key;
+  std::map<std::pair<int, std::string>, std::vector<const Dot2dTruth*>> visible_by_view;
+  for (const Dot2dTruth& d : truth) {
+    truth_by_key[{d.frame, d.camera, d.marker}] = &d;
+    if (d.visible) visible_by_view[{d.frame, d.camera}].push_back(&d);
+  }
+  std::vector<double> errors;
+  for (const Dot2dTruth& d : truth) {
+    if (d.frame < first) continue;
+    auto it = by_key.find({d.frame, d.camera, d.marker});
+    const bool named = it != by_key.end();
+    switch (d.disc) {
+      case DotDiscState::kFull:
+        ++score.full;
+        if (named) {
+          ++score.full_named;
+          errors.push_back((it->second->pixel - d.centroid).norm());
+        }
+        break;
+      case DotDiscState::kPartial:
+        ++score.partial;
+        score.partial_named += named;
+        break;
+      case DotDiscState::kHidden:
+        ++score.hidden;
+        score.hidden_rows += named;
+        break;
+    }
+  }
+  for (const Track2d& t : tracks) {
+    ++score.rows;
+    auto it = truth_by_key.find({t.frame, t.camera, t.marker});
+    if (it == truth_by_key.end()) {
+      ++score.wrong;
+      continue;
+    }
+    const Dot2dTruth& own = *it->second;
+    const Vec2 own_centre = own.has_centroid ? own.centroid : own.pixel;
+    const double own_d = (t.pixel - own_centre).norm();
+    bool wrong = own_d > wrong_px;
+    const double own_point_d = (t.pixel - own.pixel).norm();
+    for (const Dot2dTruth* other : visible_by_view[{t.frame, t.camera}]) {
+      if (other->marker != t.marker && (t.pixel - other->pixel).norm() < own_point_d) wrong = true;
+    }
+    score.wrong += wrong;
+  }
+  score.median_px = Quantile(errors, 0.5);
+  score.p95_px = Quantile(errors, 0.95);
+  score.max_px = errors.empty() ? 0 : *std::max_element(errors.begin(), errors.end());
+  return score;
+}
+
+}  // namespace hmc

@@ -1,0 +1,40 @@
+// Scores tracks_2d.csv against a synthetic shot's dots_2d.csv (the issue's
+// targets; docs/tracking.md, "Measured accuracy"). Truth is read
+// independently of the tracker: per (frame, camera, marker) the exact
+// projection x, y, the disc state and, for `full` dots, the intensity
+// centroid cx, cy.
+//
+//  - accuracy: |track - (cx, cy)| over the named `full` dot-views;
+//  - recall: named / present for `full` and `partial` dot-views;
+//  - hidden rows: rows on `hidden` dot-views / hidden dot-views;
+//  - wrong names: rows more than `wrong_px` from their own marker's dot, or
+//    nearer another marker's (visible) dot than their own, or for a marker
+//    the truth does not place in the image.
+// Only frames from the first tracked frame on are counted.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/tracks_2d.h"
+
+namespace hmc {
+
+struct TrackScore {
+  int64_t rows = 0;
+  int64_t full = 0, full_named = 0;
+  int64_t partial = 0, partial_named = 0;
+  int64_t hidden = 0, hidden_rows = 0;
+  int64_t wrong = 0;
+  double median_px = 0, p95_px = 0, max_px = 0;  // full dots vs (cx, cy)
+  double FullRecall() const { return full ? static_cast<double>(full_named) / full : 0; }
+  double PartialRecall() const { return partial ? static_cast<double>(partial_named) / partial : 0; }
+  double HiddenFraction() const { return hidden ? static_cast<double>(hidden_rows) / hidden : 0; }
+  double WrongFraction() const { return rows ? static_cast<double>(wrong) / rows : 0; }
+  std::string BriefReport() const;
+};
+
+TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot2dTruth>& truth,
+                       double wrong_px = 2);
+
+}  // namespace hmc

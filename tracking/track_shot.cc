@@ -1,0 +1,249 @@
+#include "tracking/track_shot.h"
+
+#include <chrono>
+#include <future>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/actor.h"
+#include "core/calibration.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/image_io.h"
+#include "core/logging.h"
+#include "core/parallel.h"
+#include "tracking/overlay.h"
+
+namespace hmc {
+
+void TrackOptions::Register(OptionFields* fields) {
+  footage.Register(fields);
+  fields->Add("reference_frame", &reference_frame,
+              "frame where the actor is near neutral and names are given");
+  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  fields->SetGroup("detect");
+  detect.Register(fields);
+  fields->SetGroup("track");
+  tracker.Register(fields);
+  fields->SetGroup("");
+}
+
+bool TrackOptions::Check() const {
+  bool ok = footage.Check() && detect.Check() && tracker.Check();
+  if (reference_frame < 1) {
+    spdlog::error("track options: reference_frame must be >= 1");
+    ok = false;
+  }
+  if (threads < 0) {
+    spdlog::error("track options: threads must be >= 0");
+    ok = false;
+  }
+  return ok;
+}
+
+std::string TrackSummary::BriefReport() const {
+  return fmt::format(
+      "{} frames from reference frame {} ({} markers registered, rms {:.2f} mm); {:.1f} "
+      "detections and {:.1f} named dots per view; {} re-acquired, {} swaps caught, {} views "
+      "skipped; {} rows in {:.1f} s ({:.1f} camera-frames/s)",
+      frames, reference_frame, labelling.inliers, labelling.rms_mm, mean_detections, mean_named,
+      reacquired, swaps_caught, skipped_views, rows, seconds,
+      seconds > 0 ? 2 * frames / seconds : 0.0);
+}
+
+namespace {
+
+// The named dots drawn on a fisheye frame (--overlay).
+cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
+                  const MarkerLayout& layout, const std::string& label) {
+  cv::Mat bgr;
+  cv::cvtColor(ToGrey8(grey), bgr, cv::COLOR_GRAY2BGR);
+  for (size_t i = 0; i < tracks.marker.size(); ++i) {
+    DrawNamedDot(&bgr, tracks.pixel[i], layout.names[tracks.marker[i]]);
+  }
+  cv::putText(bgr, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  return bgr;
+}
+
+nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) {
+  nlohmann::json j;
+  j["detections"] = t.detections;
+  j["named"] = t.marker.size();
+  j["unnamed"] = t.unnamed;
+  j["lost"] = t.lost;
+  j["reacquired"] = t.reacquired;
+  j["swaps_caught"] = t.swaps_caught;
+  j["skipped"] = t.skipped;
+  if (!error.empty()) j["error"] = error;
+  return j;
+}
+
+}  // namespace
+
+TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
+  if (!options.Check()) throw InputError("invalid track options (see the message above)");
+  const auto start = std::chrono::steady_clock::now();
+  ThreadLimit thread_limit(options.threads);
+  const HelmetRig rig = ReadCalibration(input.calibration);
+  if (rig.cameras.size() != 2) {
+    ThrowInputError(input.calibration, 0, "hmc track needs two cameras, the file has {}",
+                    rig.cameras.size());
+  }
+  const Actor actor = LoadActor(input.actor);
+  if (actor.markers.size() < 3) {
+    ThrowInputError(input.actor, 0, "the actor has {} markers; tracking needs at least 3",
+                    actor.markers.size());
+  }
+  const MarkerLayout layout = MakeMarkerLayout(actor, options.tracker.neighbours);
+  std::vector<std::string> names;
+  std::vector<cv::Size> sizes;
+  for (const HelmetCamera& hc : rig.cameras) {
+    names.push_back(hc.name);
+    sizes.emplace_back(hc.camera.width, hc.camera.height);
+  }
+  FootageReader reader(input.shot, names, options.footage, sizes);
+  const int num_cameras = reader.num_cameras();
+  if (!input.overlay_dir.empty()) EnsureDirectory(input.overlay_dir);
+  if (!input.out.parent_path().empty()) EnsureDirectory(input.out.parent_path());
+
+  TrackOutput output;
+  TrackSummary& summary = output.summary;
+  MarkerTracker tracker(rig, layout, options.tracker);
+  nlohmann::json frames_json = nlohmann::json::array();
+  std::vector<double> dot_size(num_cameras, options.detect.dot_size_px);
+  bool started = false;
+  int64_t detections_total = 0, named_total = 0, views = 0;
+  Progress progress("track", reader.num_frames());
+  // Decoding of frame n + 1 runs beside the detection of frame n.
+  auto read_next = [&reader] {
+    auto frame = std::make_unique<FootageFrame>();
+    if (!reader.Next(frame.get())) frame.reset();
+    return frame;
+  };
+  std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
+  for (;;) {
+    std::unique_ptr<FootageFrame> frame = next.get();
+    if (!frame) break;
+    next = std::async(std::launch::async, read_next);
+    progress.Advance();
+    if (frame->frame < options.reference_frame) continue;
+    std::vector<bool> present(num_cameras);
+    for (int c = 0; c < num_cameras; ++c) present[c] = !frame->images[c].empty();
+    if (!started) {
+      if (!frame->complete()) {
+        summary.warnings.push_back(fmt::format(
+            "reference frame {} is incomplete; labelling at the next complete frame",
+            frame->frame));
+        continue;
+      }
+      for (int c = 0; c < num_cameras; ++c) {
+        if (dot_size[c] > 0) continue;
+        dot_size[c] = MeasureDotSize(frame->images[c], options.detect);
+        if (dot_size[c] <= 0) {
+          ThrowInputError(reader.source(c), 0,
+                          "no painted dots found at the reference frame {} (set --detect.dot_size_px "
+                          "or check --detect.polarity)",
+                          frame->frame);
+        }
+      }
+    }
+    std::vector<std::vector<DotDetection>> detections(num_cameras);
+    ParallelFor(0, num_cameras, [&](int64_t c) {
+      if (present[c]) detections[c] = DetectDots(frame->images[c], options.detect, dot_size[c]);
+    });
+    std::vector<CameraFrameTracks> result;
+    if (!started) {
+      for (int c = 0; c < num_cameras; ++c) {
+        spdlog::debug("reference frame {} {}: dot size {:.2f} px, {} detections", frame->frame,
+                      names[c], dot_size[c], detections[c].size());
+      }
+      result = tracker.Start(detections, frame->images, dot_size);
+      summary.labelling = tracker.labelling();
+      if (!summary.labelling.ok) {
+        ThrowInputError(input.shot, 0, "cannot label the reference frame {}: {}", frame->frame,
+                        summary.labelling.reason);
+      }
+      summary.reference_frame = frame->frame;
+      started = true;
+    } else {
+      result = tracker.Step(detections, frame->images);
+    }
+    ++summary.frames;
+    nlohmann::json frame_json;
+    frame_json["frame"] = frame->frame;
+    for (int c = 0; c < num_cameras; ++c) {
+      const CameraFrameTracks& t = result[c];
+      if (t.skipped) ++summary.skipped_views;
+      if (!t.skipped) {
+        ++views;
+        detections_total += t.detections;
+        named_total += static_cast<int64_t>(t.marker.size());
+      }
+      summary.reacquired += t.reacquired;
+      summary.swaps_caught += t.swaps_caught;
+      for (size_t i = 0; i < t.marker.size(); ++i) {
+        Track2d row;
+        row.frame = frame->frame;
+        row.camera = names[c];
+        row.marker = layout.names[t.marker[i]];
+        row.pixel = t.pixel[i];
+        row.score = t.score[i];
+        output.tracks.push_back(row);
+      }
+      frame_json["cameras"][names[c]] = CameraJson(t, frame->errors[c]);
+      if (!input.overlay_dir.empty() && present[c]) {
+        WritePng(input.overlay_dir / fmt::format("frame_{:06d}_{}.png", frame->frame, names[c]),
+                 DrawNamed(frame->images[c], t, layout,
+                           fmt::format("frame {} {}: {} named", frame->frame, names[c],
+                                       t.marker.size())));
+      }
+    }
+    frames_json.push_back(frame_json);
+  }
+  progress.Finish();
+  if (!started) {
+    ThrowInputError(input.shot, 0, "no complete frame at or after the reference frame {}",
+                    options.reference_frame);
+  }
+  for (const std::string& w : reader.warnings()) summary.warnings.push_back(w);
+  for (const std::string& w : summary.warnings) spdlog::warn("track: {}", w);
+  summary.dot_size_px = dot_size;
+  summary.mean_detections = views ? static_cast<double>(detections_total) / views : 0;
+  summary.mean_named = views ? static_cast<double>(named_total) / views : 0;
+  summary.rows = static_cast<int64_t>(output.tracks.size());
+
+  WriteTracks2dCsv(input.out, output.tracks);
+  OptionFields used;
+  TrackOptions copy = options;
+  copy.Register(&used);
+  WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml");
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!input.diagnostics.empty()) {
+    nlohmann::json j;
+    j["reference_frame"] = summary.reference_frame;
+    j["dot_size_px"] = summary.dot_size_px;
+    j["labelling"] = {{"ok", summary.labelling.ok},
+                      {"candidate_points", summary.labelling.candidate_points},
+                      {"inliers", summary.labelling.inliers},
+                      {"rms_mm", summary.labelling.rms_mm}};
+    j["warnings"] = summary.warnings;
+    j["summary"] = {{"frames", summary.frames},
+                    {"skipped_views", summary.skipped_views},
+                    {"mean_detections", summary.mean_detections},
+                    {"mean_named", summary.mean_named},
+                    {"reacquired", summary.reacquired},
+                    {"swaps_caught", summary.swaps_caught},
+                    {"rows", summary.rows},
+                    {"seconds", summary.seconds}};
+    j["frames"] = frames_json;
+    WriteFileAtomic(input.diagnostics, j.dump(1));
+  }
+  return output;
+}
+
+}  // namespace hmc

@@ -1,0 +1,69 @@
+// `hmc track`: footage in, labelled marker tracks out (docs/tracking.md).
+// Reads the shot's two fisheye videos (tracking/footage_reader.h), detects
+// the painted dots in every original frame (tracking/dot_detector.h), names
+// them at the reference frame from the actor's neutral marker layout and
+// tracks them over the shot (tracking/marker_tracker.h). Writes
+// tracks_2d.csv (core/tracks_2d.h), options_used.yaml beside it, and
+// optionally a diagnostics JSON and overlay PNGs (docs/formats.md).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/options.h"
+#include "core/tracks_2d.h"
+#include "tracking/dot_detector.h"
+#include "tracking/footage_reader.h"
+#include "tracking/marker_tracker.h"
+
+namespace hmc {
+
+struct TrackOptions {
+  FootageOptions footage;        // cam0, cam1, frames, offset1 (top level)
+  int reference_frame = 1;       // frame where the actor is near neutral and names are given
+  int threads = 0;               // worker threads (0 = all cores)
+  DotDetectorOptions detect;     // detect.*
+  MarkerTrackerOptions tracker;  // track.*
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct TrackInput {
+  std::filesystem::path shot;         // shot folder (videos or image folders)
+  std::filesystem::path calibration;  // calibration.yaml
+  std::filesystem::path actor;        // actor package (markers)
+  std::filesystem::path out;          // tracks_2d.csv to write
+  std::filesystem::path overlay_dir;  // PNGs with the named dots ("" = none)
+  std::filesystem::path diagnostics;  // JSON per frame and camera ("" = none)
+};
+
+struct TrackSummary {
+  int frames = 0;             // frames read (from the reference frame on)
+  int skipped_views = 0;      // camera images that failed to decode
+  int reference_frame = 0;    // the frame labelled
+  std::vector<double> dot_size_px;  // per camera, used by the detector
+  ReferenceLabelling labelling;
+  double mean_detections = 0;  // per view
+  double mean_named = 0;       // per view
+  int reacquired = 0;
+  int swaps_caught = 0;
+  int64_t rows = 0;
+  double seconds = 0;
+  std::vector<std::string> warnings;
+  std::string BriefReport() const;
+};
+
+struct TrackOutput {
+  std::vector<Track2d> tracks;
+  TrackSummary summary;
+};
+
+// Throws InputError naming the file on a missing or unreadable input (a
+// video of the wrong size for the calibration, an unreadable file), or when
+// the reference frame cannot be labelled. Frames that fail to decode are
+// skipped and reported (diagnostics, warnings).
+TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options);
+
+}  // namespace hmc
