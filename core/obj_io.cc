@@ -1,5 +1,6 @@
 #include "core/obj_io.h"
 
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
