@@ -1,5 +1,5 @@
 // `hmc solve --actor DIR --bundles bundles.csv [--jaw jaw.csv] --out OUT
-// [--method NAME] [--diagnostics FILE.json]`: meshes from bundles. The
+// [--method NAME] [--diagnostics FILE.json] [--topology FILE.obj]`: meshes from bundles. The
 // default method `robust` (blending/robust_solver.h, docs/method.md) uses
 // local geometric indexing per bundle and frame, sewn with natural-neighbour
 // weights (docs/ARCHITECTURE.md, "Method steps"), where the local data explain the markers
@@ -32,6 +32,7 @@
 #include "core/frame_data.h"
 #include "core/logging.h"
 #include "core/mesh_sequence.h"
+#include "core/obj_io.h"
 
 namespace hmc {
 namespace {
@@ -55,6 +56,7 @@ struct SolveCommand {
   std::string jaw_file;
   std::string out;
   std::string diagnostics_file;
+  std::string topology_file;
   bool no_cache_write = false;
   double fps = 30.0;
   SolveCommandOptions options;
@@ -171,6 +173,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   seq.topology = actor.neutral;
   WriteMeshSequence(cmd.out, seq);
   WriteOptionsUsed(binding.fields(), parent / "options_used.yaml");
+  if (!cmd.topology_file.empty()) WriteObj(cmd.topology_file, actor.neutral);
   if (!cmd.diagnostics_file.empty()) {
     WriteFileAtomic(cmd.diagnostics_file,
                     Diagnostics(actor, cmd.options.method,
@@ -204,6 +207,9 @@ HMC_COMMAND(Solve, "", "solve",
       ->required();
   app->add_option("--diagnostics", cmd->diagnostics_file,
                   "Per frame and bundle diagnostics (JSON)");
+  app->add_option("--topology", cmd->topology_file,
+                  "Also write the meshes' topology (the actor's neutral, mm, with UVs) as "
+                  "an OBJ: the mesh a .pc2/.mdd is applied to in Blender (docs/blender.md)");
   app->add_option("--fps", cmd->fps, "Frame rate written to the output")
       ->check(CLI::PositiveNumber);
   app->add_flag("--no_cache_write,--no-cache-write", cmd->no_cache_write,

@@ -243,11 +243,14 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
   } else if (stage == "triangulate") {
     key.AddInput("tracks", Out("track", "tracks_2d.csv"));
     key.AddInput("calibration", calibration);
+    key.AddInputText("actor", actor_hash_);
+    // With the actor: the painted dots' offset under the skin is corrected
+    // from its neutral's curvature (docs/calibration.md).
     plan.run = [this, calibration](const fs::path& dir) {
       return RunCommand("triangulate",
                         {"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
-                         "--calibration", calibration.string(), "--out",
-                         (dir / "bundles_helmet.csv").string(), "--diagnostics",
+                         "--calibration", calibration.string(), "--actor", input_.actor,
+                         "--out", (dir / "bundles_helmet.csv").string(), "--diagnostics",
                          (dir / "triangulation.csv").string()},
                         dir);
     };
