@@ -78,15 +78,6 @@ double FaceFrontZ(const TriMesh& neutral, double y) {
   return best;
 }
 
-std::string Rigid3Row(const Rigid3& t) {
-  const Eigen::Matrix<double, 3, 4> m = t.matrix().topRows<3>();
-  std::string out;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out += fmt::format("{:.12g},", m(r, c));
-  }
-  return out + fmt::format("{:.9g},{:.9g},{:.9g}", m(0, 3), m(1, 3), m(2, 3));
-}
-
 // Writes one camera's frames: a lossless FFV1 .mkv (written under a
 // temporary name and renamed when complete) or a PNG folder.
 class FrameSink {
@@ -199,8 +190,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
   std::vector<JawFrame> jaw(num_frames);
   std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy\n";
-  std::string pose_csv =
-      "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
+  std::vector<PoseFrame> poses(num_frames);
   SynthShotSummary summary;
   summary.frames = num_frames;
   summary.cameras = num_cameras;
@@ -247,7 +237,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
       bundles_head[f].bundles[marker.name] = p;
       bundles_helmet[f].bundles[marker.name] = helmet_from_head * p;
     }
-    pose_csv += fmt::format("{},{}\n", frame, Rigid3Row(head_from_helmet));
+    poses[f] = {frame, head_from_helmet};
     std::vector<cv::Mat> panels;
     std::vector<cv::Mat> images(num_cameras);
     for (int c = 0; c < num_cameras; ++c) {
@@ -297,7 +287,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
 
   // Ground truth.
   WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
-  WriteFileAtomic(out_dir / "head_from_helmet.csv", pose_csv);
+  WritePosesCsv(out_dir / "head_from_helmet.csv", poses);
   WriteBundlesCsv(out_dir / "bundles.csv", bundles_head);
   WriteBundlesCsv(out_dir / "bundles_helmet.csv", bundles_helmet);
   WriteJawCsv(out_dir / "jaw.csv", jaw);
