@@ -23,12 +23,18 @@
 #include "core/mesh_sequence.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
+#include "synth/synth_random.h"
 
 namespace hmc {
 
 void SynthShotOptions::Register(OptionFields* fields) {
   performance.Register(fields);
-  fields->Add("video", &video, "ffv1 (lossless .mkv per camera) | png (a folder per camera)");
+  fields->Add("video", &video,
+              "ffv1 (lossless .mkv per camera) | png (a folder per camera) | none (ground truth "
+              "only: no images, dots_2d.csv or contact sheet)");
+  fields->Add("bundle_noise_mm", &bundle_noise_mm,
+              "> 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per "
+              "coordinate (mm)");
   fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)");
   fields->Add("contact_dots", &contact_dots, "overlay the ground-truth dots on the contact sheet");
   fields->Add("contact_scale", &contact_scale, "contact sheet image scale");
@@ -39,8 +45,12 @@ void SynthShotOptions::Register(OptionFields* fields) {
 
 bool SynthShotOptions::Check() const {
   bool ok = performance.Check() && rig.Check() && render.Check();
-  if (video != "ffv1" && video != "png") {
-    spdlog::error("synth shot options: video must be ffv1 or png, got '{}'", video);
+  if (video != "ffv1" && video != "png" && video != "none") {
+    spdlog::error("synth shot options: video must be ffv1, png or none, got '{}'", video);
+    ok = false;
+  }
+  if (!(bundle_noise_mm >= 0 && bundle_noise_mm <= 50)) {
+    spdlog::error("synth shot options: bundle_noise_mm must be in [0, 50]");
     ok = false;
   }
   if (contact_frames < 0 || contact_frames > 32) {
@@ -170,16 +180,17 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
   const int num_cameras = renderer.NumCameras();
+  const bool render = options.video != "none";
   WriteCalibration(out_dir / "calibration.yaml", rig);
 
   std::vector<FrameSink> sinks;
   sinks.reserve(num_cameras);
-  for (const HelmetCamera& hc : rig.cameras) {
+  for (const HelmetCamera& hc : render ? rig.cameras : std::vector<HelmetCamera>()) {
     sinks.emplace_back(out_dir, hc.name, options.video, perf.fps,
                        cv::Size(hc.camera.width, hc.camera.height));
   }
   std::set<int> contact;
-  for (int i = 0; i < options.contact_frames; ++i) {
+  for (int i = 0; render && i < options.contact_frames; ++i) {
     contact.insert(static_cast<int>((i + 0.5) * num_frames / options.contact_frames));
   }
   std::vector<cv::Mat> contact_rows;
@@ -215,7 +226,9 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     // Motion blur: sub-frame states across the shutter, centred on the frame.
     std::vector<MatX3d> blur_positions;
     std::vector<SceneState> samples;
-    if (blur > 1) {
+    if (!render) {
+      // Ground truth only: nothing to sample.
+    } else if (blur > 1) {
       blur_positions.reserve(blur);
       for (int j = 0; j < blur; ++j) {
         const double tau = (j / (blur - 1.0) - 0.5) * options.render.shutter;  // frames
@@ -239,8 +252,8 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     }
     poses[f] = {frame, head_from_helmet};
     std::vector<cv::Mat> panels;
-    std::vector<cv::Mat> images(num_cameras);
-    for (int c = 0; c < num_cameras; ++c) {
+    std::vector<cv::Mat> images(render ? num_cameras : 0);
+    for (int c = 0; c < static_cast<int>(images.size()); ++c) {
       const auto render_start = std::chrono::steady_clock::now();
       const uint64_t key = (static_cast<uint64_t>(perf.seed) << 32) ^
                            (static_cast<uint64_t>(frame) << 4) ^ static_cast<uint64_t>(c);
@@ -286,10 +299,19 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   for (FrameSink& sink : sinks) sink.Finish();
 
   // Ground truth.
-  WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
+  if (render) WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
   WritePosesCsv(out_dir / "head_from_helmet.csv", poses);
   WriteBundlesCsv(out_dir / "bundles.csv", bundles_head);
   WriteBundlesCsv(out_dir / "bundles_helmet.csv", bundles_helmet);
+  if (options.bundle_noise_mm > 0) {
+    SynthRandom noise = SynthRandom::Stream(static_cast<uint64_t>(perf.seed), 51);
+    for (BundleFrame& frame : bundles_helmet) {
+      for (auto& [name, p] : frame.bundles) {
+        for (int i = 0; i < 3; ++i) p[i] += options.bundle_noise_mm * noise.Normal();
+      }
+    }
+    WriteBundlesCsv(out_dir / "bundles_helmet_noisy.csv", bundles_helmet);
+  }
   WriteJawCsv(out_dir / "jaw.csv", jaw);
   std::string tags_csv = "camera,tag,corner,x,y\n";
   for (int c = 0; c < num_cameras; ++c) {
