@@ -27,6 +27,8 @@ struct PerformanceOptions {
   double vibration_mm = 0.12;   // amplitude of the helmet vibration (mm)
   double vibration_deg = 0.04;  // amplitude of the vibration's rotation (deg)
   double vibration_hz = 11;     // main vibration frequency (Hz)
+  double brow_activity = 0;     // peak of added slow brow raises/lowerings (activation; 0 = none)
+  double jaw_activity = 0;      // peak of added slow jaw opening, swing, thrust (activation; 0 = none)
 
   void Register(OptionFields* fields);
   bool Check() const;
