@@ -1,0 +1,377 @@
+#include "stabilization/jaw_fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/parallel.h"
+#include "stabilization/jaw_cost.h"
+
+namespace hmc {
+
+void JawOptions::Register(OptionFields* fields) {
+  fields->Add("smoothness", &smoothness,
+              "mu: temporal prior on second differences (mm^2 per deg^2, or per mm^2 for "
+              "protrude; 0 = off)");
+  fields->Add("bound_margin", &bound_margin,
+              "bounds: the dataset's jaw range widened by this fraction of it (at least 1 deg "
+              "/ 1 mm) on each side");
+  fields->Add("ridge", &ridge, "lambda: ridge on the global shape weights (mm^2 per unit weight^2)");
+  fields->Add("min_jaw_markers", &min_jaw_markers,
+              "fewer jaw markers present: the frame is interpolated");
+  fields->Add("lip_prefix", &lip_prefix,
+              "markers named so (or tagged lower_lip) join the jaw markers");
+  fields->Add("max_solver_iterations", &max_solver_iterations,
+              "Ceres iterations per frame");
+  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+}
+
+bool JawOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("jaw options: {}", message);
+    ok = false;
+  };
+  if (!(smoothness >= 0 && smoothness <= 1e6)) fail("smoothness must be in [0, 1e6]");
+  if (!(bound_margin >= 0 && bound_margin <= 10)) fail("bound_margin must be in [0, 10]");
+  if (!(ridge > 0 && ridge <= 1e6)) fail("ridge must be in (0, 1e6]");
+  if (min_jaw_markers < 2 || min_jaw_markers > 10000) fail("min_jaw_markers must be in [2, 10000]");
+  if (max_solver_iterations < 1 || max_solver_iterations > 1000) {
+    fail("max_solver_iterations must be in [1, 1000]");
+  }
+  return ok;
+}
+
+std::string JawOutput::BriefReport() const {
+  return fmt::format(
+      "{} frames ({} fitted, {} interpolated), mean jaw-marker residual {:.3f} mm, {:.0f} "
+      "frames/s",
+      frames.size(), num_ok, num_interpolated, mean_rms_mm,
+      seconds > 0 ? frames.size() / seconds : 0.0);
+}
+
+std::vector<JawFrame> JawOutput::JawFrames() const {
+  std::vector<JawFrame> out;
+  for (const JawFit& fit : frames) out.push_back({fit.frame, fit.pose});
+  return out;
+}
+
+std::vector<int> JawMarkers(const MarkerModel& model, const Actor& actor,
+                            const JawOptions& options) {
+  std::vector<int> out;
+  for (int k = 0; k < model.num_markers; ++k) {
+    const Marker& marker = actor.markers[k];
+    const bool lip = (!options.lip_prefix.empty() &&
+                      marker.name.rfind(options.lip_prefix, 0) == 0) ||
+                     marker.HasTag("lower_lip");
+    if ((model.jaw[k] || lip) && model.jaw_weight[k] > 0) out.push_back(k);
+  }
+  return out;
+}
+
+namespace {
+
+using Pose = std::array<double, 3>;
+
+class FrameJawFitter {
+ public:
+  FrameJawFitter(const MarkerModel& model, const std::vector<int>& jaw_markers,
+                 const JawOptions& options, const Pose& lower, const Pose& upper)
+      : model_(model), options_(options), lower_(lower), upper_(upper),
+        in_jaw_(model.num_markers, 0) {
+    for (int k : jaw_markers) in_jaw_[k] = 1;
+    const Eigen::MatrixXd& b = model.unskinned_displacement;
+    normal_ = b.transpose() * b;
+    normal_.diagonal().array() += options.ridge;
+    full_factor_.compute(normal_);
+  }
+
+  JawFit Fit(const BundleFrame& in) const {
+    JawFit out;
+    out.frame = in.frame;
+    FrameMarkers frame;
+    for (const auto& [name, p] : in.bundles) {
+      const int k = model_.Find(name);
+      if (k < 0) continue;
+      if (in_jaw_[k]) frame.jaw.push_back(static_cast<int>(frame.ks.size()));
+      frame.ks.push_back(k);
+      frame.points.push_back(p);
+    }
+    out.jaw_markers = static_cast<int>(frame.jaw.size());
+    if (out.jaw_markers < options_.min_jaw_markers) {
+      out.reason = fmt::format("{} jaw markers (min_jaw_markers {})", out.jaw_markers,
+                               options_.min_jaw_markers);
+      return out;
+    }
+    Eigen::LLT<Eigen::MatrixXd> partial;
+    frame.factor = &full_factor_;
+    if (static_cast<int>(frame.ks.size()) < model_.num_markers) {
+      partial = PartialFactor(frame.ks);
+      frame.factor = &partial;
+    }
+    Pose theta;
+    for (int i = 0; i < 3; ++i) theta[i] = std::clamp(0.0, lower_[i], upper_[i]);
+    ceres::Problem problem;
+    problem.AddResidualBlock(
+        new ceres::NumericDiffCostFunction<ProjectedResidual, ceres::CENTRAL, ceres::DYNAMIC, 3>(
+            new ProjectedResidual(this, &frame), ceres::TAKE_OWNERSHIP, 3 * out.jaw_markers),
+        nullptr, theta.data());
+    for (int i = 0; i < 3; ++i) {
+      problem.SetParameterLowerBound(theta.data(), i, lower_[i]);
+      problem.SetParameterUpperBound(theta.data(), i, upper_[i]);
+    }
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::DENSE_QR;
+    solver.max_num_iterations = options_.max_solver_iterations;
+    solver.logging_type = ceres::SILENT;
+    solver.num_threads = 1;
+    solver.function_tolerance = 1e-12;
+    solver.gradient_tolerance = 1e-14;
+    solver.parameter_tolerance = 1e-10;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+    double cost = 0;
+    ceres::CRSMatrix jacobian;
+    problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian);
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(jacobian.num_rows, 3);
+    for (int r = 0; r < jacobian.num_rows; ++r) {
+      for (int e = jacobian.rows[r]; e < jacobian.rows[r + 1]; ++e) {
+        j(r, jacobian.cols[e]) = jacobian.values[e];
+      }
+    }
+    out.information = j.transpose() * j;
+    out.rms_mm = std::sqrt(2 * cost / out.jaw_markers);
+    out.pose = JawPose::FromArray(theta);
+    out.ok = true;
+    return out;
+  }
+
+ private:
+  // One frame's markers: model indices, bundles, which are jaw markers,
+  // and the Cholesky factor of B*^T B* + lambda I over the present ones.
+  struct FrameMarkers {
+    std::vector<int> ks;
+    std::vector<Vec3> points;
+    std::vector<int> jaw;  // positions in ks
+    const Eigen::LLT<Eigen::MatrixXd>* factor = nullptr;
+  };
+
+  // Variable projection (Golub & Pereyra 1973): the jaw markers' residuals
+  // p_k - S_k(T(theta), u_k(c*(theta))) with the shape weights eliminated,
+  //   c*(theta) = argmin_c sum_k |S_k^-1(p_k; theta) - x0(s_k) - B*_k c|^2
+  //               + lambda |c|^2   (all present markers),
+  // so Ceres moves theta and c together (alternating the two steps
+  // converges slowly: the shapes and the jaw both move the chin).
+  struct ProjectedResidual {
+    ProjectedResidual(const FrameJawFitter* fitter, const FrameMarkers* frame)
+        : fitter(fitter), frame(frame) {}
+    bool operator()(const double* theta, double* residual) const {
+      const MarkerModel& model = fitter->model_;
+      const JawRig& rig = *model.jaw_rig;
+      const Rigid3 t = rig.Transform(JawPose::FromArray({theta[0], theta[1], theta[2]}));
+      const Eigen::MatrixXd& b = model.unskinned_displacement;
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(model.num_shapes);
+      for (size_t i = 0; i < frame->ks.size(); ++i) {
+        const int k = frame->ks[i];
+        const Vec3 d = model.Unskin(k, t, frame->points[i]) - model.neutral.row(k).transpose();
+        rhs.noalias() += b.middleRows<3>(3 * k).transpose() * d;
+      }
+      const Eigen::VectorXd c = frame->factor->solve(rhs);
+      for (size_t j = 0; j < frame->jaw.size(); ++j) {
+        const int k = frame->ks[frame->jaw[j]];
+        const Vec3 u = model.neutral.row(k).transpose() + b.middleRows<3>(3 * k) * c;
+        const JawMarkerCost cost(rig, frame->points[frame->jaw[j]], &u, model.jaw_weight[k],
+                                 model.jaw_moment.row(k).transpose());
+        cost(theta, residual + 3 * j);
+      }
+      return true;
+    }
+    const FrameJawFitter* fitter;
+    const FrameMarkers* frame;
+  };
+
+  // The factor with the missing markers' terms taken out.
+  Eigen::LLT<Eigen::MatrixXd> PartialFactor(const std::vector<int>& ks) const {
+    const Eigen::MatrixXd& b = model_.unskinned_displacement;
+    std::vector<char> present(model_.num_markers, 0);
+    for (int k : ks) present[k] = 1;
+    Eigen::MatrixXd normal = normal_;
+    for (int k = 0; k < model_.num_markers; ++k) {
+      if (present[k]) continue;
+      const auto bk = b.middleRows<3>(3 * k);
+      normal.noalias() -= bk.transpose() * bk;
+    }
+    return Eigen::LLT<Eigen::MatrixXd>(normal);
+  }
+
+  const MarkerModel& model_;
+  const JawOptions& options_;
+  Pose lower_, upper_;
+  std::vector<char> in_jaw_;
+  Eigen::MatrixXd normal_;
+  Eigen::LLT<Eigen::MatrixXd> full_factor_;
+};
+
+// Linear interpolation of the poses of frames with !ok by frame number,
+// held at the ends.
+void InterpolateFailedJaw(std::vector<JawFit>* frames) {
+  std::vector<int> good;
+  for (size_t i = 0; i < frames->size(); ++i) {
+    if ((*frames)[i].ok) good.push_back(static_cast<int>(i));
+  }
+  if (good.empty()) return;
+  size_t next = 0;
+  for (size_t i = 0; i < frames->size(); ++i) {
+    while (next < good.size() && good[next] < static_cast<int>(i)) ++next;
+    JawFit& fit = (*frames)[i];
+    if (fit.ok) continue;
+    if (next == 0) {
+      fit.pose = (*frames)[good.front()].pose;
+    } else if (next == good.size()) {
+      fit.pose = (*frames)[good.back()].pose;
+    } else {
+      const JawFit& a = (*frames)[good[next - 1]];
+      const JawFit& b = (*frames)[good[next]];
+      const double s = static_cast<double>(fit.frame - a.frame) / std::max(1, b.frame - a.frame);
+      const Pose pa = a.pose.ToArray(), pb = b.pose.ToArray();
+      Pose p;
+      for (int k = 0; k < 3; ++k) p[k] = (1 - s) * pa[k] + s * pb[k];
+      fit.pose = JawPose::FromArray(p);
+    }
+  }
+}
+
+// The temporal prior over the sequence (jaw_fit.h).
+void SmoothJaw(double mu, const Pose& lower, const Pose& upper, std::vector<JawFit>* frames) {
+  const int n = static_cast<int>(frames->size());
+  if (mu <= 0 || n < 3) return;
+  std::vector<Pose> theta(n);
+  ceres::Problem problem;
+  for (int f = 0; f < n; ++f) {
+    theta[f] = (*frames)[f].pose.ToArray();
+    problem.AddParameterBlock(theta[f].data(), 3);
+    for (int i = 0; i < 3; ++i) {
+      problem.SetParameterLowerBound(theta[f].data(), i, lower[i]);
+      problem.SetParameterUpperBound(theta[f].data(), i, upper[i]);
+    }
+    const JawFit& fit = (*frames)[f];
+    if (!fit.ok) continue;
+    const Mat3 h = fit.information + 1e-9 * Mat3::Identity();
+    const Mat3 lt = Eigen::LLT<Mat3>(h).matrixL().transpose();
+    const Pose estimate = fit.pose.ToArray();
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<JawDataPrior, 3, 3>(
+            new JawDataPrior(lt, Vec3(estimate[0], estimate[1], estimate[2]))),
+        nullptr, theta[f].data());
+  }
+  for (int f = 1; f + 1 < n; ++f) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<JawSecondDifference, 3, 3, 3, 3>(
+            new JawSecondDifference(std::sqrt(mu))),
+        nullptr, theta[f - 1].data(), theta[f].data(), theta[f + 1].data());
+  }
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.sparse_linear_algebra_library_type =
+      ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)
+          ? ceres::SUITE_SPARSE
+          : ceres::EIGEN_SPARSE;
+  solver.max_num_iterations = 50;
+  solver.logging_type = ceres::SILENT;
+  solver.function_tolerance = 1e-14;
+  solver.parameter_tolerance = 1e-12;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+  for (int f = 0; f < n; ++f) (*frames)[f].pose = JawPose::FromArray(theta[f]);
+}
+
+}  // namespace
+
+JawOutput RunJaw(const Actor& actor, const MarkerModel& model,
+                 const std::vector<BundleFrame>& bundles, const JawOptions& options) {
+  if (!options.Check()) throw InputError("invalid jaw options (see the message above)");
+  if (!model.jaw_rig) {
+    ThrowInputError(actor.dir / "actor.yaml", 0,
+                     "actor '{}' has no jaw rig (no jaw in actor.yaml): there is no jaw pose "
+                     "to estimate; run `hmc solve` without --jaw",
+                     actor.name);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  ThreadLimit thread_limit(options.threads);
+  JawOutput out;
+  // Bounds: the dataset's jaw poses (and the rest pose), widened.
+  for (int i = 0; i < 3; ++i) out.lower[i] = out.upper[i] = 0;
+  for (const Shape& shape : actor.shapes) {
+    const Pose p = shape.jaw.ToArray();
+    for (int i = 0; i < 3; ++i) {
+      out.lower[i] = std::min(out.lower[i], p[i]);
+      out.upper[i] = std::max(out.upper[i], p[i]);
+    }
+  }
+  for (int i = 0; i < 3; ++i) {
+    const double margin = std::max(options.bound_margin * (out.upper[i] - out.lower[i]), 1.0);
+    out.lower[i] -= margin;
+    out.upper[i] += margin;
+  }
+  const std::vector<int> jaw_markers = JawMarkers(model, actor, options);
+  if (static_cast<int>(jaw_markers.size()) < options.min_jaw_markers) {
+    spdlog::warn("jaw: the actor has {} jaw markers (tagged jaw, or lower lip, with jaw "
+                 "weight), fewer than min_jaw_markers {}: every frame is interpolated",
+                 jaw_markers.size(), options.min_jaw_markers);
+  }
+  const FrameJawFitter fitter(model, jaw_markers, options, out.lower, out.upper);
+  const int num_frames = static_cast<int>(bundles.size());
+  out.frames.resize(num_frames);
+  ParallelFor(0, num_frames, [&](int64_t f) { out.frames[f] = fitter.Fit(bundles[f]); }, 4);
+  InterpolateFailedJaw(&out.frames);
+  SmoothJaw(options.smoothness, out.lower, out.upper, &out.frames);
+  double sum = 0;
+  for (const JawFit& fit : out.frames) {
+    if (fit.ok) {
+      ++out.num_ok;
+      sum += fit.rms_mm;
+    } else {
+      ++out.num_interpolated;
+    }
+  }
+  out.mean_rms_mm = out.num_ok > 0 ? sum / out.num_ok : 0.0;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+void WriteJawOutput(const JawOutput& output, const JawOptions& options,
+                    const std::filesystem::path& path) {
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
+  EnsureDirectory(dir);
+  WriteJawCsv(path, output.JawFrames());
+  const std::string stem = path.stem().string();
+  OptionFields used;
+  JawOptions copy = options;
+  copy.Register(&used);
+  WriteOptionsUsed(used, dir / (stem + "_options_used.yaml"));
+  nlohmann::json summary;
+  summary["stage"] = "jaw";
+  summary["frames"] = output.frames.size();
+  summary["fitted"] = output.num_ok;
+  summary["interpolated"] = output.num_interpolated;
+  summary["mean_residual_mm"] = output.mean_rms_mm;
+  summary["seconds"] = output.seconds;
+  summary["lower"] = output.lower;
+  summary["upper"] = output.upper;
+  nlohmann::json interpolated = nlohmann::json::array();
+  for (const JawFit& fit : output.frames) {
+    if (!fit.ok) interpolated.push_back({{"frame", fit.frame}, {"reason", fit.reason}});
+  }
+  summary["interpolated_frames"] = interpolated;
+  summary["report"] = output.BriefReport();
+  WriteFileAtomic(dir / (stem + "_summary.json"), summary.dump(2) + "\n");
+}
+
+}  // namespace hmc
