@@ -24,6 +24,8 @@ void StabilizeOptions::Register(OptionFields* fields) {
   fields->Add("loss_scale_mm", &loss_scale_mm, "residual scale of the robust loss (mm)");
   fields->Add("irls_iterations", &irls_iterations, "most reweighting steps per fit");
   fields->Add("expression", &expression, "alternate the rigid fit with global shape weights");
+  fields->Add("shot_weights", &shot_weights,
+              "second pass with weights from the first pass's per-marker residuals");
   fields->Add("expression_iterations", &expression_iterations,
               "rigid / shape-weight alternations (expression)");
   fields->Add("expression_ridge", &expression_ridge,
@@ -116,6 +118,7 @@ class FrameStabilizer {
   }
 
   const Eigen::VectorXd& prior_weights() const { return w0_; }
+  void set_prior_weights(const Eigen::VectorXd& w0) { w0_ = w0; }
 
   StabilizedFrame Fit(const BundleFrame& in) const {
     StabilizedFrame out;
@@ -273,6 +276,27 @@ double Median(std::vector<double> values) {
   return values[mid];
 }
 
+// The second pass's prior weights (shot_weights): each marker's inverse
+// median squared residual over the first pass's fitted frames, floored at
+// (1e-4 mm)^2, largest 1; markers never fitted keep their weight x 0.
+Eigen::VectorXd ShotWeights(const MarkerModel& model, const std::vector<StabilizedFrame>& frames,
+                            const Eigen::VectorXd& first) {
+  std::vector<std::vector<double>> squared(model.num_markers);
+  for (const StabilizedFrame& frame : frames) {
+    if (!frame.ok) continue;
+    for (const MarkerResidual& r : frame.residuals) {
+      squared[r.marker].push_back(r.residual_mm * r.residual_mm);
+    }
+  }
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(model.num_markers);
+  for (int k = 0; k < model.num_markers; ++k) {
+    if (squared[k].empty() || first[k] <= 0) continue;
+    w[k] = 1.0 / (Median(squared[k]) + 1e-8);
+  }
+  if (w.maxCoeff() > 0) w /= w.maxCoeff();
+  return w;
+}
+
 }  // namespace
 
 void InterpolateFailedPoses(std::vector<StabilizedFrame>* frames) {
@@ -309,13 +333,19 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
   }
   const auto start = std::chrono::steady_clock::now();
   ThreadLimit thread_limit(options.threads);
-  const FrameStabilizer stabilizer(model, options);
+  FrameStabilizer stabilizer(model, options);
   const int num_frames = static_cast<int>(bundles_helmet.size());
   StabilizeOutput out;
   out.frames.resize(num_frames);
   ParallelFor(0, num_frames, [&](int64_t f) {
     out.frames[f] = stabilizer.Fit(bundles_helmet[f]);
   }, 8);
+  if (options.shot_weights) {
+    stabilizer.set_prior_weights(ShotWeights(model, out.frames, stabilizer.prior_weights()));
+    ParallelFor(0, num_frames, [&](int64_t f) {
+      out.frames[f] = stabilizer.Fit(bundles_helmet[f]);
+    }, 8);
+  }
   InterpolateFailedPoses(&out.frames);
   SmoothPoses(options.smooth_frames, &out.frames);
 

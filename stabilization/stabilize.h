@@ -46,7 +46,8 @@ struct StabilizeOptions {
   std::string loss = "cauchy";   // robust loss of the reweighting: none | huber | cauchy
   double loss_scale_mm = 0.5;    // residual scale of the robust loss (mm)
   int irls_iterations = 20;      // most reweighting steps per fit
-  bool expression = false;       // alternate the rigid fit with global shape weights
+  bool expression = true;        // alternate the rigid fit with global shape weights
+  bool shot_weights = true;      // second pass with weights from the first pass's per-marker residuals
   int expression_iterations = 4;  // rigid / shape-weight alternations (expression)
   double expression_ridge = 0.1;  // ridge on the shape weights (mm^2 per unit weight^2)
   int min_markers = 4;           // fewer usable markers: the frame is interpolated
