@@ -85,21 +85,26 @@ class FrameJawFitter {
   FrameJawFitter(const MarkerModel& model, const std::vector<int>& jaw_markers,
                  const JawOptions& options, const Pose& lower, const Pose& upper)
       : model_(model), options_(options), lower_(lower), upper_(upper),
-        in_jaw_(model.num_markers, 0) {
+        jaw_markers_(jaw_markers), in_jaw_(model.num_markers, 0) {
     for (int k : jaw_markers) in_jaw_[k] = 1;
     const Eigen::MatrixXd& b = model.unskinned_displacement;
     normal_ = b.transpose() * b;
     normal_.diagonal().array() += options.ridge;
-    full_factor_.compute(normal_);
+    full_projection_ = Projection(Eigen::LLT<Eigen::MatrixXd>(normal_), AllMarkers());
   }
 
   JawFit Fit(const BundleFrame& in) const {
     JawFit out;
     out.frame = in.frame;
     FrameMarkers frame;
+    std::vector<std::pair<int, Vec3>> present;
     for (const auto& [name, p] : in.bundles) {
       const int k = model_.Find(name);
-      if (k < 0) continue;
+      if (k >= 0) present.emplace_back(k, p);
+    }
+    std::sort(present.begin(), present.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [k, p] : present) {
       if (in_jaw_[k]) frame.jaw.push_back(static_cast<int>(frame.ks.size()));
       frame.ks.push_back(k);
       frame.points.push_back(p);
@@ -110,18 +115,17 @@ class FrameJawFitter {
                                options_.min_jaw_markers);
       return out;
     }
-    Eigen::LLT<Eigen::MatrixXd> partial;
-    frame.factor = &full_factor_;
-    if (static_cast<int>(frame.ks.size()) < model_.num_markers) {
-      partial = PartialFactor(frame.ks);
-      frame.factor = &partial;
-    }
+    const Eigen::MatrixXd& projection =
+        static_cast<int>(frame.ks.size()) == model_.num_markers
+            ? full_projection_
+            : Projection(PartialFactor(frame.ks), frame.ks);
+    SplitProjection(projection, &frame);
     Pose theta;
     for (int i = 0; i < 3; ++i) theta[i] = std::clamp(0.0, lower_[i], upper_[i]);
     ceres::Problem problem;
     problem.AddResidualBlock(
         new ceres::NumericDiffCostFunction<ProjectedResidual, ceres::CENTRAL, ceres::DYNAMIC, 3>(
-            new ProjectedResidual(this, &frame), ceres::TAKE_OWNERSHIP, 3 * out.jaw_markers),
+            new ProjectedResidual(&model_, &frame), ceres::TAKE_OWNERSHIP, 3 * out.jaw_markers),
         nullptr, theta.data());
     for (int i = 0; i < 3; ++i) {
       problem.SetParameterLowerBound(theta.data(), i, lower_[i]);
@@ -154,13 +158,17 @@ class FrameJawFitter {
   }
 
  private:
-  // One frame's markers: model indices, bundles, which are jaw markers,
-  // and the Cholesky factor of B*^T B* + lambda I over the present ones.
+  // One frame's markers (ascending model index), their bundles, which are
+  // jaw markers, and the shape weights' effect on the jaw markers split
+  // into what the jaw pose cannot change (markers without jaw weight: their
+  // unskinned bundles do not depend on theta) and what it can.
   struct FrameMarkers {
     std::vector<int> ks;
     std::vector<Vec3> points;
-    std::vector<int> jaw;  // positions in ks
-    const Eigen::LLT<Eigen::MatrixXd>* factor = nullptr;
+    std::vector<int> jaw;        // positions in ks
+    std::vector<int> dynamic;    // positions in ks with jaw weight > 0
+    Eigen::VectorXd base;        // 3|J|: x0_J + P_static d_static
+    Eigen::MatrixXd dynamic_projection;  // 3|J| x 3|dynamic|
   };
 
   // Variable projection (Golub & Pereyra 1973): the jaw markers' residuals
@@ -168,34 +176,82 @@ class FrameJawFitter {
   //   c*(theta) = argmin_c sum_k |S_k^-1(p_k; theta) - x0(s_k) - B*_k c|^2
   //               + lambda |c|^2   (all present markers),
   // so Ceres moves theta and c together (alternating the two steps
-  // converges slowly: the shapes and the jaw both move the chin).
+  // converges slowly: the shapes and the jaw both move the chin). With the
+  // projection P = B*_J (B*^T B* + lambda I)^-1 B*^T precomputed, the jaw
+  // markers' unskinned positions are u_J = x0_J + P d(theta).
   struct ProjectedResidual {
-    ProjectedResidual(const FrameJawFitter* fitter, const FrameMarkers* frame)
-        : fitter(fitter), frame(frame) {}
+    ProjectedResidual(const MarkerModel* model, const FrameMarkers* frame)
+        : model(model), frame(frame) {}
     bool operator()(const double* theta, double* residual) const {
-      const MarkerModel& model = fitter->model_;
-      const JawRig& rig = *model.jaw_rig;
+      const JawRig& rig = *model->jaw_rig;
       const Rigid3 t = rig.Transform(JawPose::FromArray({theta[0], theta[1], theta[2]}));
-      const Eigen::MatrixXd& b = model.unskinned_displacement;
-      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(model.num_shapes);
-      for (size_t i = 0; i < frame->ks.size(); ++i) {
-        const int k = frame->ks[i];
-        const Vec3 d = model.Unskin(k, t, frame->points[i]) - model.neutral.row(k).transpose();
-        rhs.noalias() += b.middleRows<3>(3 * k).transpose() * d;
+      Eigen::VectorXd d(3 * frame->dynamic.size());
+      for (size_t i = 0; i < frame->dynamic.size(); ++i) {
+        const int at = frame->dynamic[i];
+        const int k = frame->ks[at];
+        d.segment<3>(3 * i) =
+            model->Unskin(k, t, frame->points[at]) - model->neutral.row(k).transpose();
       }
-      const Eigen::VectorXd c = frame->factor->solve(rhs);
+      const Eigen::VectorXd u = frame->base + frame->dynamic_projection * d;
       for (size_t j = 0; j < frame->jaw.size(); ++j) {
         const int k = frame->ks[frame->jaw[j]];
-        const Vec3 u = model.neutral.row(k).transpose() + b.middleRows<3>(3 * k) * c;
-        const JawMarkerCost cost(rig, frame->points[frame->jaw[j]], &u, model.jaw_weight[k],
-                                 model.jaw_moment.row(k).transpose());
+        const Vec3 uj = u.segment<3>(3 * j);
+        const JawMarkerCost cost(rig, frame->points[frame->jaw[j]], &uj, model->jaw_weight[k],
+                                 model->jaw_moment.row(k).transpose());
         cost(theta, residual + 3 * j);
       }
       return true;
     }
-    const FrameJawFitter* fitter;
+    const MarkerModel* model;
     const FrameMarkers* frame;
   };
+
+  std::vector<int> AllMarkers() const {
+    std::vector<int> all(model_.num_markers);
+    for (int k = 0; k < model_.num_markers; ++k) all[k] = k;
+    return all;
+  }
+
+  // P (3|J present| x 3|ks|) for the markers ks (ascending) and the factor
+  // of their normal matrix: rows for the jaw markers among ks.
+  Eigen::MatrixXd Projection(const Eigen::LLT<Eigen::MatrixXd>& factor,
+                             const std::vector<int>& ks) const {
+    const Eigen::MatrixXd& b = model_.unskinned_displacement;
+    std::vector<int> jaw;
+    for (int k : ks) {
+      if (in_jaw_[k]) jaw.push_back(k);
+    }
+    Eigen::MatrixXd b_jaw(3 * jaw.size(), model_.num_shapes);
+    for (size_t j = 0; j < jaw.size(); ++j) b_jaw.middleRows<3>(3 * j) = b.middleRows<3>(3 * jaw[j]);
+    Eigen::MatrixXd b_present(3 * ks.size(), model_.num_shapes);
+    for (size_t i = 0; i < ks.size(); ++i) b_present.middleRows<3>(3 * i) = b.middleRows<3>(3 * ks[i]);
+    const Eigen::MatrixXd g = factor.solve(b_jaw.transpose());  // N x 3|J|
+    return g.transpose() * b_present.transpose();
+  }
+
+  // Fills frame->base and frame->dynamic_projection from P.
+  void SplitProjection(const Eigen::MatrixXd& projection, FrameMarkers* frame) const {
+    const int n = static_cast<int>(frame->ks.size());
+    const int rows = 3 * static_cast<int>(frame->jaw.size());
+    frame->base.resize(rows);
+    for (size_t j = 0; j < frame->jaw.size(); ++j) {
+      frame->base.segment<3>(3 * j) = model_.neutral.row(frame->ks[frame->jaw[j]]).transpose();
+    }
+    for (int i = 0; i < n; ++i) {
+      const int k = frame->ks[i];
+      if (model_.jaw_weight[k] > 0) {
+        frame->dynamic.push_back(i);
+        continue;
+      }
+      const Vec3 d = frame->points[i] - model_.neutral.row(k).transpose();
+      frame->base.noalias() += projection.middleCols<3>(3 * i) * d;
+    }
+    frame->dynamic_projection.resize(rows, 3 * frame->dynamic.size());
+    for (size_t i = 0; i < frame->dynamic.size(); ++i) {
+      frame->dynamic_projection.middleCols<3>(3 * i) =
+          projection.middleCols<3>(3 * frame->dynamic[i]);
+    }
+  }
 
   // The factor with the missing markers' terms taken out.
   Eigen::LLT<Eigen::MatrixXd> PartialFactor(const std::vector<int>& ks) const {
@@ -214,9 +270,10 @@ class FrameJawFitter {
   const MarkerModel& model_;
   const JawOptions& options_;
   Pose lower_, upper_;
+  std::vector<int> jaw_markers_;
   std::vector<char> in_jaw_;
   Eigen::MatrixXd normal_;
-  Eigen::LLT<Eigen::MatrixXd> full_factor_;
+  Eigen::MatrixXd full_projection_;  // P over all markers
 };
 
 // Linear interpolation of the poses of frames with !ok by frame number,

@@ -1,6 +1,7 @@
 #include "stabilization/jaw_fit.h"
 
 #include <random>
+#include <tuple>
 
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include "stabilization/accuracy.h"
 #include "stabilization/jaw_cost.h"
 #include "stabilization/shot_test_util.h"
+#include "stabilization/stabilize.h"
 
 namespace hmc {
 namespace {
@@ -59,6 +61,32 @@ TEST(JawCostTest, ResidualIsZeroAtTheSkinnedPosition) {
     EXPECT_LT((a.markers.Unskin(k, t, p) - u).norm(), 1e-10);
   }
 }
+
+// On stabilized bundles (the pipeline's input) of 3 actors, noise-free and
+// at 0.2 mm: the targets.
+class JawAccuracy : public ::testing::TestWithParam<std::tuple<int, double>> {};
+
+TEST_P(JawAccuracy, JawPoseMatchesTheTruth) {
+  const auto [seed, noise] = GetParam();
+  const SmallActor a = MakeSmallActor(seed);
+  PerformanceOptions perf;
+  perf.seed = seed + 20;
+  perf.frames = 60;
+  perf.jaw_activity = 0.6;
+  const ShotTruth shot = MakeShotTruth(a, perf, noise);
+  const StabilizeOutput stabilized = RunStabilize(a.markers, shot.helmet, StabilizeOptions());
+  const JawOutput out = RunJaw(a.actor, a.markers, stabilized.bundles, JawOptions());
+  EXPECT_EQ(out.num_ok, perf.frames);
+  const JawError error = CompareJaw(out.JawFrames(), shot.jaw);
+  const double degrees = noise == 0 ? 0.2 : 0.5, mm = noise == 0 ? 0.1 : 0.3;
+  EXPECT_LT(error.rms[0], degrees) << error.BriefReport();
+  EXPECT_LT(error.rms[1], degrees) << error.BriefReport();
+  EXPECT_LT(error.rms[2], mm) << error.BriefReport();
+}
+
+INSTANTIATE_TEST_SUITE_P(SeedsAndNoise, JawAccuracy,
+                         ::testing::Combine(::testing::Values(1, 2, 3),
+                                            ::testing::Values(0.0, 0.2)));
 
 TEST(JawFitTest, FramesWithoutJawMarkersAreInterpolatedAndFlagged) {
   const SmallActor& a = Actor1();

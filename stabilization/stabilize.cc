@@ -102,6 +102,10 @@ Eigen::VectorXd StabilizationWeights(const MarkerModel& model,
 
 namespace {
 
+// Residuals beyond this many loss scales leave the marker out of the next
+// shape-weight fit (Cauchy weight below 0.1).
+constexpr double kOutlierScales = 3.0;
+
 // The per-frame fit: precomputed prior weights and, for the expression-
 // aware fit, the Cholesky factor of B^T B + lambda I over all markers.
 class FrameStabilizer {
@@ -151,9 +155,21 @@ class FrameStabilizer {
     const int outer = options_.expression && model_.num_shapes > 0
                           ? options_.expression_iterations + 1
                           : 1;
+    std::vector<char> inlier(n, 1);
     for (int round = 0; round < outer && fit.ok; ++round) {
-      if (round > 0) target = q + ExpressionOffsets(ks, fit.target_from_source * a - q);
+      if (round > 0) {
+        target = q + ExpressionOffsets(ks, inlier, fit.target_from_source * a - q);
+      }
       fit = Reweighted(a, target, w0, &w);
+      // A marker far off the expression's fit (a bad track) would pull the
+      // shape weights: the next shape fit leaves it out. (Before the first
+      // shape fit every moving marker is far off the neutral.)
+      if (round > 0 && loss_ != RobustLoss::kNone && fit.ok) {
+        const Eigen::Matrix3Xd r = fit.target_from_source * a - target;
+        for (int i = 0; i < n; ++i) {
+          inlier[i] = r.col(i).norm() <= kOutlierScales * options_.loss_scale_mm;
+        }
+      }
     }
     if (!fit.ok) {
       out.reason = "usable markers are collinear";
@@ -196,25 +212,29 @@ class FrameStabilizer {
   }
 
   // B_k c for the present markers ks, c the ridge fit of the residuals d
-  // (3 x n): min_c sum_k |d_k - B_k c|^2 + lambda |c|^2.
-  Eigen::Matrix3Xd ExpressionOffsets(const std::vector<int>& ks,
+  // (3 x n) of the inliers: min_c sum_inliers |d_k - B_k c|^2 + lambda |c|^2.
+  Eigen::Matrix3Xd ExpressionOffsets(const std::vector<int>& ks, const std::vector<char>& inlier,
                                      const Eigen::Matrix3Xd& d) const {
     const Eigen::MatrixXd& b = model_.displacement;
     const int n = static_cast<int>(ks.size());
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(model_.num_shapes);
+    std::vector<char> used(model_.num_markers, 0);
+    int num_used = 0;
     for (int i = 0; i < n; ++i) {
+      if (!inlier[i]) continue;
       rhs.noalias() += b.middleRows<3>(3 * ks[i]).transpose() * d.col(i);
+      used[ks[i]] = 1;
+      ++num_used;
     }
     Eigen::VectorXd c;
-    if (n == model_.num_markers) {
+    if (num_used == model_.num_markers) {
       c = full_factor_.solve(rhs);
     } else {
-      // Missing markers: take their terms out of the normal matrix.
-      std::vector<char> present(model_.num_markers, 0);
-      for (int k : ks) present[k] = 1;
+      // Missing or left-out markers: take their terms out of the normal
+      // matrix.
       Eigen::MatrixXd normal = normal_;
       for (int k = 0; k < model_.num_markers; ++k) {
-        if (present[k]) continue;
+        if (used[k]) continue;
         const auto bk = b.middleRows<3>(3 * k);
         normal.noalias() -= bk.transpose() * bk;
       }
@@ -277,8 +297,13 @@ double Median(std::vector<double> values) {
 }
 
 // The second pass's prior weights (shot_weights): each marker's inverse
-// median squared residual over the first pass's fitted frames, floored at
-// (1e-4 mm)^2, largest 1; markers never fitted keep their weight x 0.
+// median squared residual v_k over the first pass's fitted frames,
+// w_k = 1 / (v_k + v_floor), largest 1. v_floor is the lower quartile of
+// v_k over the markers the first pass trusted (prior weight >= 0.5): no
+// marker is trusted more than the better quarter of those, so on noise-free
+// data a few markers whose residuals happen to vanish (they sit where the
+// first pass's small pose error does not move them) do not take over the
+// fit. Markers never fitted, or with a zero first weight, get 0.
 Eigen::VectorXd ShotWeights(const MarkerModel& model, const std::vector<StabilizedFrame>& frames,
                             const Eigen::VectorXd& first) {
   std::vector<std::vector<double>> squared(model.num_markers);
@@ -288,10 +313,22 @@ Eigen::VectorXd ShotWeights(const MarkerModel& model, const std::vector<Stabiliz
       squared[r.marker].push_back(r.residual_mm * r.residual_mm);
     }
   }
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(model.num_markers);
+  Eigen::VectorXd v = Eigen::VectorXd::Constant(model.num_markers, -1.0);
+  std::vector<double> trusted;
   for (int k = 0; k < model.num_markers; ++k) {
     if (squared[k].empty() || first[k] <= 0) continue;
-    w[k] = 1.0 / (Median(squared[k]) + 1e-8);
+    v[k] = Median(squared[k]);
+    if (first[k] >= 0.5) trusted.push_back(v[k]);
+  }
+  double floor = 1e-12;
+  if (!trusted.empty()) {
+    const size_t quarter = trusted.size() / 2;
+    std::nth_element(trusted.begin(), trusted.begin() + quarter, trusted.end());
+    floor = std::max(floor, trusted[quarter]);
+  }
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(model.num_markers);
+  for (int k = 0; k < model.num_markers; ++k) {
+    if (v[k] >= 0) w[k] = 1.0 / (v[k] + floor);
   }
   if (w.maxCoeff() > 0) w /= w.maxCoeff();
   return w;
@@ -334,6 +371,8 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
   const auto start = std::chrono::steady_clock::now();
   ThreadLimit thread_limit(options.threads);
   FrameStabilizer stabilizer(model, options);
+  // The dataset's prior weights: which markers should follow the head.
+  const Eigen::VectorXd trusted = stabilizer.prior_weights();
   const int num_frames = static_cast<int>(bundles_helmet.size());
   StabilizeOutput out;
   out.frames.resize(num_frames);
@@ -379,9 +418,8 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
   }
   out.mean_rms_mm = out.num_ok > 0 ? sum_rms / out.num_ok : 0.0;
   out.unknown_markers.assign(unknown.begin(), unknown.end());
-  const Eigen::VectorXd& w0 = stabilizer.prior_weights();
   for (int k = 0; k < model.num_markers; ++k) {
-    if (w0[k] < 0.5 || residuals[k].empty()) continue;
+    if (trusted[k] < 0.5 || residuals[k].empty()) continue;
     const double median = Median(residuals[k]);
     if (median > options.bad_track_mm) out.bad_tracks.push_back({model.names[k], median});
   }
