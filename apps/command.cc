@@ -1,11 +1,84 @@
 #include "apps/command.h"
 
+#include <algorithm>
+#include <map>
+#include <vector>
+
 #include "core/error.h"
 
 namespace hmc {
+namespace {
 
-OptionBinding::OptionBinding(CLI::App* app, OptionFields fields)
-    : fields_(std::move(fields)) {
+struct Registered {
+  const char* group;
+  const char* name;
+  const char* help;
+  CommandSetup setup;
+};
+
+std::vector<Registered>& Registry() {
+  static std::vector<Registered> registry;
+  return registry;
+}
+
+const std::map<std::string, std::string>& GroupHelp() {
+  static const std::map<std::string, std::string> help = {
+      {"actor", "Actor packages: synthesize, check, ground-truth frames, preview"},
+      {"synth", "Synthetic footage with exact ground truth"},
+      {"debug", "Pictures of intermediate results, for debugging one stage"},
+  };
+  return help;
+}
+
+}  // namespace
+
+bool RegisterCommand(const char* group, const char* name, const char* help,
+                     CommandSetup setup) {
+  Registry().push_back({group, name, help, std::move(setup)});
+  return true;
+}
+
+void AddRegisteredCommands(CLI::App* app, CommandRun* run) {
+  std::map<std::string, CLI::App*> groups;
+  for (auto& command : Registry()) {
+    CLI::App* parent = app;
+    if (command.group[0] != '\0') {
+      auto it = groups.find(command.group);
+      if (it == groups.end()) {
+        const auto help = GroupHelp().find(command.group);
+        CLI::App* group = app->add_subcommand(
+            command.group,
+            help == GroupHelp().end() ? std::string() : help->second);
+        group->require_subcommand(1);
+        it = groups.emplace(command.group, group).first;
+      }
+      parent = it->second;
+    }
+    CLI::App* sub = parent->add_subcommand(command.name, command.help);
+    CommandRun command_run = command.setup(sub);
+    sub->callback([run, command_run] { *run = command_run; });
+  }
+}
+
+int RunCommandLine(const std::vector<std::string>& args) {
+  CLI::App app("hmc", "hmc");
+  app.require_subcommand(1);
+  CommandRun run;
+  AddRegisteredCommands(&app, &run);
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    std::string line;
+    for (const std::string& a : args) line += " " + a;
+    throw InputError(fmt::format("hmc{}: {}", line, e.what()));
+  }
+  if (!run) throw InputError("no command to run");
+  return run();
+}
+
+OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string config_section)
+    : fields_(std::move(fields)), config_section_(std::move(config_section)) {
   app->add_option("--config", config_file_,
                   "YAML file of option values (defaults: configs/); flags on "
                   "the command line override it")
@@ -30,7 +103,18 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields)
 }
 
 void OptionBinding::Apply() {
-  if (!config_file_.empty()) fields_.LoadYamlFile(config_file_);
+  if (!config_file_.empty() && config_section_.empty()) fields_.LoadYamlFile(config_file_);
+  if (!config_file_.empty() && !config_section_.empty()) {
+    YAML::Node root;
+    try {
+      root = YAML::LoadFile(config_file_);
+    } catch (const YAML::Exception& e) {
+      ThrowInputError(config_file_, e.mark.line + 1, "not valid YAML: {}", e.msg);
+    }
+    if (root.IsMap() && root[config_section_]) {
+      fields_.LoadYaml(root[config_section_], config_file_);
+    }
+  }
   for (size_t i = 0; i < flags_.size(); ++i) {
     if (flags_[i].second->count() > 0) {
       fields_.Set(flags_[i].first->name, *values_[i],

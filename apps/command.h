@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -27,17 +28,32 @@ using CommandSetup = std::function<CommandRun(CLI::App* app)>;
 bool RegisterCommand(const char* group, const char* name, const char* help,
                      CommandSetup setup);
 
+// Adds every registered command (inside its group) to `app`; the command
+// the parse selects stores what to run in *run (which must outlive `app`).
+void AddRegisteredCommands(CLI::App* app, CommandRun* run);
+
+// Runs the command line `hmc <args...>` (without global flags) in this
+// process and returns its exit code; what the command throws passes
+// through, a parse error becomes an InputError. `hmc run` chains the stages
+// with it, so each stage runs exactly as its own command.
+int RunCommandLine(const std::vector<std::string>& args);
+
 // Adds `--config FILE` and one flag `--<field>` per registered option field
 // to `app`. Apply() (call at run time) loads the config file, then the flags
 // given on the command line on top of it. Unknown config keys are errors.
+// With a `config_section`, the config file is a mapping of which only that
+// key's value holds these options (other keys belong to others: the stage
+// sections of `hmc run`'s config).
 class OptionBinding {
  public:
-  OptionBinding(CLI::App* app, OptionFields fields);
+  OptionBinding(CLI::App* app, OptionFields fields, std::string config_section = "");
   void Apply();
   const OptionFields& fields() const { return fields_; }
+  const std::string& config_file() const { return config_file_; }
 
  private:
   OptionFields fields_;
+  std::string config_section_;
   std::string config_file_;
   std::vector<std::pair<const OptionFields::Field*, CLI::Option*>> flags_;
   std::vector<std::unique_ptr<std::string>> values_;

@@ -1,6 +1,5 @@
 #include "core/frame_data.h"
 
-#include <charconv>
 #include <cmath>
 #include <ostream>
 #include <set>
@@ -11,101 +10,10 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/text.h"
 
 namespace hmc {
 namespace {
-
-// One CSV line split at commas, fields trimmed of surrounding blanks. The
-// files we read are machine-written and never quote fields, so quoting is
-// not supported (a quote is reported as a malformed field).
-std::vector<std::string_view> SplitCsvLine(std::string_view line) {
-  std::vector<std::string_view> fields;
-  size_t start = 0;
-  while (true) {
-    const size_t comma = line.find(',', start);
-    std::string_view field = line.substr(
-        start, comma == std::string_view::npos ? std::string_view::npos
-                                               : comma - start);
-    while (!field.empty() && (field.front() == ' ' || field.front() == '\t')) {
-      field.remove_prefix(1);
-    }
-    while (!field.empty() && (field.back() == ' ' || field.back() == '\t')) {
-      field.remove_suffix(1);
-    }
-    fields.push_back(field);
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
-  return fields;
-}
-
-// Calls row(fields, line_number) for every non-blank line after the header;
-// checks the header first. Accepts \n and \r\n line ends.
-template <typename RowFn>
-void ForEachCsvRow(const std::filesystem::path& path,
-                   const std::vector<std::string>& header, const RowFn& row) {
-  const std::string text = ReadFile(path);
-  std::string_view rest(text);
-  int line_number = 0;
-  bool header_seen = false;
-  while (!rest.empty()) {
-    const size_t end = rest.find('\n');
-    std::string_view line = rest.substr(0, end);
-    rest.remove_prefix(end == std::string_view::npos ? rest.size() : end + 1);
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (line.find_first_not_of(" \t") == std::string_view::npos) continue;
-    const std::vector<std::string_view> fields = SplitCsvLine(line);
-    if (!header_seen) {
-      bool ok = fields.size() == header.size();
-      for (size_t i = 0; ok && i < header.size(); ++i) {
-        ok = fields[i] == header[i];
-      }
-      if (!ok) {
-        ThrowInputError(path, line_number, "bad header '{}': expected '{}'",
-                        line, fmt::join(header, ","));
-      }
-      header_seen = true;
-      continue;
-    }
-    if (fields.size() != header.size()) {
-      ThrowInputError(path, line_number, "expected {} fields ({}), found {}",
-                      header.size(), fmt::join(header, ","), fields.size());
-    }
-    row(fields, line_number);
-  }
-  if (!header_seen) {
-    ThrowInputError(path, 0, "empty file: expected the header '{}'",
-                    fmt::join(header, ","));
-  }
-}
-
-int ParseInt(std::string_view field, const std::filesystem::path& path,
-             int line, const char* what) {
-  int value = 0;
-  const auto [end, error] =
-      std::from_chars(field.data(), field.data() + field.size(), value);
-  if (field.empty() || error != std::errc() ||
-      end != field.data() + field.size()) {
-    ThrowInputError(path, line, "{} '{}' is not an integer", what, field);
-  }
-  return value;
-}
-
-double ParseFinite(std::string_view field, const std::filesystem::path& path,
-                   int line, const char* what) {
-  double value = 0;
-  const auto [end, error] =
-      std::from_chars(field.data(), field.data() + field.size(), value);
-  if (field.empty() || error != std::errc() ||
-      end != field.data() + field.size()) {
-    ThrowInputError(path, line, "{} '{}' is not a number", what, field);
-  }
-  if (!std::isfinite(value)) {
-    ThrowInputError(path, line, "{} is {} (must be finite)", what, field);
-  }
-  return value;
-}
 
 // Shortest text that reads back as exactly the same double.
 std::string Exact(double value) { return fmt::format("{}", value); }
@@ -162,15 +70,11 @@ std::vector<BundleFrame> ReadBundlesCsv(const std::filesystem::path& path) {
   std::map<std::pair<int, std::string>, int> first_line;
   ForEachCsvRow(
       path, BundlesHeader(),
-      [&](const std::vector<std::string_view>& fields, int line) {
-        const int frame = ParseInt(fields[0], path, line, "frame");
-        const std::string marker(fields[1]);
-        if (marker.empty()) ThrowInputError(path, line, "empty marker name");
-        Vec3 position;
-        for (int axis = 0; axis < 3; ++axis) {
-          position[axis] = ParseFinite(fields[2 + axis], path, line,
-                                       BundlesHeader()[2 + axis].c_str());
-        }
+      [&](const CsvRow& row) {
+        const int line = row.line();
+        const int frame = row.Int(0);
+        const std::string& marker = row.NonEmpty(1);
+        const Vec3 position(row.Finite(2), row.Finite(3), row.Finite(4));
         const auto [it, inserted] =
             first_line.emplace(std::make_pair(frame, marker), line);
         if (!inserted) {
@@ -229,14 +133,12 @@ std::vector<JawFrame> ReadJawCsv(const std::filesystem::path& path) {
   std::map<int, std::pair<JawFrame, int>> frames;  // frame -> (pose, line)
   const std::vector<std::string> header = JawHeader();
   ForEachCsvRow(path, header,
-                [&](const std::vector<std::string_view>& fields, int line) {
+                [&](const CsvRow& row) {
+                  const int line = row.line();
                   JawFrame jaw;
-                  jaw.frame = ParseInt(fields[0], path, line, "frame");
-                  std::array<double, 3> values;
-                  for (int i = 0; i < 3; ++i) {
-                    values[i] = ParseFinite(fields[1 + i], path, line,
-                                            header[1 + i].c_str());
-                  }
+                  jaw.frame = row.Int(0);
+                  const std::array<double, 3> values = {
+                      row.Finite(1), row.Finite(2), row.Finite(3)};
                   jaw.pose = JawPose::FromArray(values);
                   const auto [it, inserted] =
                       frames.emplace(jaw.frame, std::make_pair(jaw, line));

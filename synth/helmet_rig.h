@@ -7,14 +7,15 @@
 // +z forward); the head then slips and vibrates inside the helmet
 // (synth/performance.h, head_from_helmet per frame). A camera frame is
 // OpenCV's: +z along the optical axis, +x right, +y down in the image.
-// calibration.yaml (docs/formats.md, "calibration.yaml") stores the rig.
+// calibration.yaml (docs/formats.md, "calibration.yaml"; core/calibration.h)
+// stores the rig.
 #pragma once
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include "core/camera_fisheye.h"
+#include "core/calibration.h"
 #include "core/options.h"
 #include "core/types.h"
 
@@ -37,41 +38,9 @@ struct HelmetRigOptions {
   bool Check() const;
 };
 
-// One helmet tag: a flat square plate with the tag and its white border.
-// Tag frame: origin at the tag centre, +x along the pattern's columns, +y
-// along its rows (down the printed pattern), +z into the plate (the tag is
-// seen from -z).
-struct HelmetTag {
-  int id = 0;              // tag36h11 code index
-  double size = 0;         // edge of the black border square (mm)
-  Rigid3 helmet_from_tag;  // pose of the tag frame in helmet space
-
-  // The four black-border corners in helmet space, in the order the
-  // AprilTag library reports them (tag coordinates (-1, 1), (1, 1), (1, -1),
-  // (-1, -1) in units of size / 2).
-  std::vector<Vec3> CornersInHelmet() const;
-};
-
-struct HelmetCamera {
-  std::string name;        // "cam0" (upper), "cam1" (lower)
-  FisheyeCamera camera;
-  Rigid3 cam_from_helmet;
-};
-
-struct HelmetRig {
-  std::vector<HelmetCamera> cameras;
-  std::vector<HelmetTag> tags;
-  std::string tag_family = "tag36h11";
-};
-
 // The default rig around a face whose frontal surface (head space, at the
 // cameras' heights) is at z = face_front_z_upper / face_front_z_lower (mm).
 HelmetRig MakeHelmetRig(const HelmetRigOptions& options,
                         double face_front_z_upper, double face_front_z_lower);
-
-// calibration.yaml as OpenCV FileStorage YAML. Read throws InputError naming
-// the file on a missing or malformed entry.
-void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig);
-HelmetRig ReadCalibration(const std::filesystem::path& path);
 
 }  // namespace hmc

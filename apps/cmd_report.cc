@@ -1,0 +1,37 @@
+// `hmc report --work WORK --shot SHOT --actor DIR --out DIR`: the run report
+// page (pipeline/report.h): what every stage of the workspace did, plots
+// over frames, a contact sheet, warnings, and the error against the shot's
+// ground truth when it has one. The last stage of `hmc run`.
+#include <memory>
+
+#include <spdlog/spdlog.h>
+
+#include "apps/command.h"
+#include "core/file_util.h"
+#include "core/logging.h"
+#include "pipeline/report.h"
+
+namespace hmc {
+
+HMC_COMMAND(Report, "", "report",
+            "Write the run report (report.html): stage summaries, plots, contact sheet, "
+            "warnings, error against ground truth when present") {
+  auto input = std::make_shared<ReportInput>();
+  auto options = std::make_shared<ReportOptions>();
+  app->add_option("--work", input->work, "Workspace of `hmc run`")->required();
+  app->add_option("--shot", input->shot, "Shot folder (footage; ground truth if present)")->required();
+  app->add_option("--actor", input->actor, "Actor package folder")->required();
+  app->add_option("--out", input->out, "Folder to write report.html and its pictures into")->required();
+  auto binding = BindOptions(app, options.get());
+  return [=] {
+    binding->Apply();
+    RequireValid(*options, "report");
+    StageTimer timer("report");
+    const ReportSummary summary = WriteRunReport(*input, *options);
+    WriteOptionsUsed(binding->fields(), std::filesystem::path(input->out) / "options_used.yaml");
+    spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
+    return 0;
+  };
+}
+
+}  // namespace hmc

@@ -1,0 +1,139 @@
+#include "core/text.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstring>
+
+#include <fmt/ranges.h>
+
+namespace hmc {
+namespace {
+
+// from_chars does not take the '+' that people and some writers put in.
+template <typename T>
+bool ParseWhole(std::string_view token, T* value) {
+  const char* begin = token.data();
+  const char* end = begin + token.size();
+  if (begin < end && *begin == '+') ++begin;
+  if (begin == end) return false;
+  const auto [ptr, error] = std::from_chars(begin, end, *value);
+  return error == std::errc() && ptr == end;
+}
+
+bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+
+}  // namespace
+
+bool ParseDouble(std::string_view token, double* value) {
+  return ParseWhole(token, value);
+}
+bool ParseInteger(std::string_view token, long long* value) {
+  return ParseWhole(token, value);
+}
+bool ParseInt(std::string_view token, int* value) {
+  return ParseWhole(token, value);
+}
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && IsBlank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && IsBlank(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> SplitWhitespace(std::string_view s) {
+  std::vector<std::string_view> parts;
+  size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+    const size_t start = i;
+    while (i < s.size() && s[i] != ' ' && s[i] != '\t') ++i;
+    if (i > start) parts.push_back(s.substr(start, i - start));
+  }
+  return parts;
+}
+
+std::string_view StripBom(std::string_view text) {
+  if (text.size() >= 3 && std::memcmp(text.data(), "\xEF\xBB\xBF", 3) == 0) {
+    text.remove_prefix(3);
+  }
+  return text;
+}
+
+std::vector<std::string> SplitCsvRecord(std::string_view line,
+                                        const std::filesystem::path& file,
+                                        int line_number) {
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        fields.back() += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        fields.back() += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
+  if (quoted) ThrowInputError(file, line_number, "unterminated quoted field");
+  for (std::string& field : fields) field = std::string(Trim(field));
+  return fields;
+}
+
+const std::string& CsvRow::NonEmpty(size_t column) const {
+  if (fields_[column].empty()) Fail("empty {}", header_[column]);
+  return fields_[column];
+}
+
+int CsvRow::Int(size_t column) const {
+  int value = 0;
+  if (!ParseInt(fields_[column], &value)) {
+    Fail("{} '{}' is not an integer", header_[column], fields_[column]);
+  }
+  return value;
+}
+
+double CsvRow::Finite(size_t column) const {
+  double value = 0;
+  if (!ParseDouble(fields_[column], &value)) {
+    Fail("{} '{}' is not a number", header_[column], fields_[column]);
+  }
+  if (!std::isfinite(value)) {
+    Fail("{} is {} (must be finite)", header_[column], fields_[column]);
+  }
+  return value;
+}
+
+namespace text_internal {
+
+void CheckHeader(const std::vector<std::string>& fields,
+                 const std::vector<std::string>& header,
+                 const std::filesystem::path& path, int line) {
+  if (fields != header) {
+    ThrowInputError(path, line, "bad header '{}': expected '{}'",
+                    fmt::join(fields, ","), fmt::join(header, ","));
+  }
+}
+
+void ThrowFieldCount(const std::vector<std::string>& header, size_t found,
+                     const std::filesystem::path& path, int line) {
+  ThrowInputError(path, line, "expected {} fields ({}), found {}",
+                  header.size(), fmt::join(header, ","), found);
+}
+
+void ThrowNoHeader(const std::vector<std::string>& header,
+                   const std::filesystem::path& path) {
+  ThrowInputError(path, 0, "empty file: expected the header '{}'",
+                  fmt::join(header, ","));
+}
+
+}  // namespace text_internal
+}  // namespace hmc

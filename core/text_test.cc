@@ -1,0 +1,87 @@
+#include "core/text.h"
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace hmc {
+namespace {
+
+TEST(TextTest, NumbersParseWholeTokensOnly) {
+  double d = 0;
+  EXPECT_TRUE(ParseDouble("1.5", &d));
+  EXPECT_EQ(d, 1.5);
+  EXPECT_TRUE(ParseDouble("+2e-3", &d));
+  EXPECT_EQ(d, 2e-3);
+  EXPECT_TRUE(ParseDouble("-0.1", &d));
+  EXPECT_EQ(d, -0.1);
+  for (const char* bad : {"", "+", "1.5x", " 1", "1 ", "1,5", "--1", "0x10"}) {
+    EXPECT_FALSE(ParseDouble(bad, &d)) << bad;
+  }
+  int i = 0;
+  EXPECT_TRUE(ParseInt("+42", &i));
+  EXPECT_EQ(i, 42);
+  EXPECT_FALSE(ParseInt("4.2", &i));
+  EXPECT_FALSE(ParseInt("99999999999", &i));  // out of range, not wrapped
+  long long ll = 0;
+  EXPECT_TRUE(ParseInteger("99999999999", &ll));
+  EXPECT_EQ(ll, 99999999999LL);
+}
+
+TEST(TextTest, DoublesRoundTripExactly) {
+  for (const double value : {0.1, 1.0 / 3.0, 1e-300, 123456.789012345678,
+                             std::numeric_limits<double>::max()}) {
+    double back = 0;
+    ASSERT_TRUE(ParseDouble(fmt::format("{}", value), &back));
+    EXPECT_EQ(back, value);
+  }
+}
+
+TEST(TextTest, LinesStripBomAndCarriageReturns) {
+  std::vector<std::pair<int, std::string>> lines;
+  ForEachLine("\xEF\xBB\xBF" "a\r\n\nb\nc", [&](int n, std::string_view l) {
+    lines.emplace_back(n, std::string(l));
+  });
+  const std::vector<std::pair<int, std::string>> expected = {
+      {1, "a"}, {2, ""}, {3, "b"}, {4, "c"}};
+  EXPECT_EQ(lines, expected);
+}
+
+TEST(TextTest, CsvRecordsFollowRfc4180AndAreTrimmed) {
+  EXPECT_EQ(SplitCsvRecord(" a , \"b,c\" ,\"say \"\"hi\"\"\",", "f", 1),
+            (std::vector<std::string>{"a", "b,c", "say \"hi\"", ""}));
+  EXPECT_THROW(SplitCsvRecord("a,\"b", "f", 3), InputError);
+}
+
+TEST(TextTest, CsvTableChecksHeaderAndFieldCount) {
+  const std::vector<std::string> header = {"frame", "x"};
+  std::vector<std::pair<int, double>> rows;
+  ForEachCsvRowInText("\xEF\xBB\xBF" "frame,x\n\n1,2.5\r\n3, 4\n", "t.csv",
+                      header, [&](const CsvRow& row) {
+                        rows.emplace_back(row.Int(0), row.Finite(1));
+                      });
+  EXPECT_EQ(rows, (std::vector<std::pair<int, double>>{{1, 2.5}, {3, 4}}));
+
+  const auto message = [&](const std::string& text) {
+    try {
+      ForEachCsvRowInText(text, "t.csv", header, [](const CsvRow& row) {
+        row.Int(0);
+        row.Finite(1);
+      });
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("").find("empty file"), std::string::npos);
+  EXPECT_NE(message("frame,y\n").find("bad header"), std::string::npos);
+  EXPECT_NE(message("frame,x\n1\n").find("t.csv:2"), std::string::npos);
+  EXPECT_NE(message("frame,x\n1,2\nx,3\n").find("t.csv:3"), std::string::npos);
+  EXPECT_NE(message("frame,x\n1,nan\n").find("finite"), std::string::npos);
+  EXPECT_NE(message("frame,x\n1,inf\n").find("finite"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hmc

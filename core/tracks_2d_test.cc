@@ -1,0 +1,83 @@
+#include "core/tracks_2d.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/temp_dir.h"
+
+namespace hmc {
+namespace {
+
+TEST(Tracks2dTest, RoundTripSortsAndKeepsSixDecimals) {
+  TempDir dir;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> px(0, 1280);
+  std::vector<Track2d> tracks;
+  for (int frame : {3, 1, 2}) {
+    for (const char* camera : {"cam1", "cam0"}) {
+      for (const char* marker : {"lip_l", "brow_r", "chin"}) {
+        tracks.push_back({frame, camera, marker, Vec2(px(rng), px(rng)), 0.5});
+      }
+    }
+  }
+  WriteTracks2dCsv(dir.path() / "t.csv", tracks);
+  const std::vector<Track2d> back = ReadTracks2dCsv(dir.path() / "t.csv");
+  ASSERT_EQ(back.size(), tracks.size());
+  for (size_t i = 1; i < back.size(); ++i) {
+    EXPECT_LE(std::tie(back[i - 1].frame, back[i - 1].camera, back[i - 1].marker),
+              std::tie(back[i].frame, back[i].camera, back[i].marker));
+  }
+  for (const Track2d& t : tracks) {
+    const auto it = std::find_if(back.begin(), back.end(), [&](const Track2d& b) {
+      return b.frame == t.frame && b.camera == t.camera && b.marker == t.marker;
+    });
+    ASSERT_NE(it, back.end());
+    EXPECT_NEAR((it->pixel - t.pixel).norm(), 0, 1e-6);
+    EXPECT_EQ(it->score, 0.5);
+  }
+}
+
+TEST(Tracks2dTest, RefusesBadRowsWithTheLine) {
+  TempDir dir;
+  const auto message = [&](const std::string& text) {
+    WriteFileAtomic(dir.path() / "t.csv", text);
+    try {
+      ReadTracks2dCsv(dir.path() / "t.csv");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string h = "frame,camera,marker,x,y,score\n";
+  EXPECT_NE(message(h + "1,cam0,a,1,2,1\n1,cam0,a,3,4,1\n").find(":3"),
+            std::string::npos);
+  EXPECT_NE(message(h + "1,cam0,a,1,2,1.5\n").find("outside"), std::string::npos);
+  EXPECT_NE(message(h + "1,,a,1,2,1\n").find("empty camera"), std::string::npos);
+  EXPECT_NE(message(h + "1,cam0,a,nan,2,1\n").find("finite"), std::string::npos);
+  EXPECT_NE(message("frame,camera,marker,x,y\n").find("bad header"),
+            std::string::npos);
+}
+
+TEST(Tracks2dTest, ReadsShotGroundTruthDots) {
+  TempDir dir;
+  WriteFileAtomic(dir.path() / "d.csv",
+                  "frame,camera,marker,x,y,visible,disc,cx,cy\n"
+                  "1,cam0,a,10.5,20.25,1,full,10.6,20.2\n"
+                  "1,cam0,b,11,21,1,partial,,\n"
+                  "1,cam1,a,12,22,0,hidden,,\n");
+  const std::vector<Dot2dTruth> dots = ReadDots2dCsv(dir.path() / "d.csv");
+  ASSERT_EQ(dots.size(), 3u);
+  EXPECT_EQ(dots[0].disc, DotDiscState::kFull);
+  EXPECT_TRUE(dots[0].has_centroid);
+  EXPECT_DOUBLE_EQ(dots[0].centroid.x(), 10.6);
+  EXPECT_EQ(dots[1].disc, DotDiscState::kPartial);
+  EXPECT_FALSE(dots[1].has_centroid);
+  EXPECT_FALSE(dots[2].visible);
+  EXPECT_EQ(dots[2].disc, DotDiscState::kHidden);
+}
+
+}  // namespace
+}  // namespace hmc

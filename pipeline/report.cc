@@ -1,0 +1,617 @@
+#include "pipeline/report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <system_error>
+#include <tuple>
+
+#include <Eigen/Geometry>
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "blending/eval_metrics.h"
+#include "core/actor.h"
+#include "core/calibration.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/frame_data.h"
+#include "core/image_io.h"
+#include "core/mesh_sequence.h"
+#include "core/render_mesh.h"
+#include "core/text.h"
+#include "core/tracks_2d.h"
+#include "pipeline/run_pipeline.h"
+#include "pipeline/svg_plot.h"
+#include "tracking/footage_reader.h"
+
+namespace hmc {
+
+namespace fs = std::filesystem;
+
+void ReportOptions::Register(OptionFields* fields) {
+  fields->Add("contact_frames", &contact_frames, "footage frames on the contact sheet (0 = none)");
+  fields->Add("contact_scale", &contact_scale, "footage image scale on the contact sheet");
+  fields->Add("mesh_px", &mesh_px, "height of the mesh renders (px)");
+  fields->Add("error_max_mm", &error_max_mm, "top of the error colour scale (mm)");
+}
+
+bool ReportOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& m) {
+    spdlog::error("report options: {}", m);
+    ok = false;
+  };
+  if (contact_frames < 0 || contact_frames > 24) fail("contact_frames must be in [0, 24]");
+  if (!(contact_scale > 0.05 && contact_scale <= 1)) fail("contact_scale must be in (0.05, 1]");
+  if (mesh_px < 64 || mesh_px > 2048) fail("mesh_px must be in [64, 2048]");
+  if (!(error_max_mm > 0 && error_max_mm < 100)) fail("error_max_mm must be in (0, 100)");
+  return ok;
+}
+
+std::string ReportSummary::BriefReport() const {
+  return fmt::format("{} stages, {} ground truth, {} warnings", stages_present,
+                     has_truth ? "with" : "no", warnings.size());
+}
+
+namespace {
+
+bool Exists(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec);
+}
+
+std::string Escape(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '<') out += "&lt;";
+    else if (c == '>') out += "&gt;";
+    else if (c == '&') out += "&amp;";
+    else out += c;
+  }
+  return out;
+}
+
+std::string Base64(const std::vector<uchar>& bytes) {
+  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const uint32_t b = (uint32_t(bytes[i]) << 16) |
+                       (i + 1 < bytes.size() ? uint32_t(bytes[i + 1]) << 8 : 0) |
+                       (i + 2 < bytes.size() ? uint32_t(bytes[i + 2]) : 0);
+    out += table[(b >> 18) & 63];
+    out += table[(b >> 12) & 63];
+    out += i + 1 < bytes.size() ? table[(b >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? table[b & 63] : '=';
+  }
+  return out;
+}
+
+std::string ImgTag(const cv::Mat& image, const std::string& alt) {
+  std::vector<uchar> png;
+  cv::imencode(".png", image, png);
+  return fmt::format("<img alt=\"{}\" src=\"data:image/png;base64,{}\">", Escape(alt), Base64(png));
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nan("");
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(std::ceil(q * v.size())) - (q > 0));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+double Rms(const std::vector<double>& v) {
+  if (v.empty()) return std::nan("");
+  double s = 0;
+  for (double x : v) s += x * x;
+  return std::sqrt(s / v.size());
+}
+
+// A JSON object's scalars as "key: value" cells, nested one level.
+std::string SummaryCells(const nlohmann::json& j, int depth = 0) {
+  if (!j.is_object()) return "";
+  std::string out;
+  for (const auto& [k, v] : j.items()) {
+    if (v.is_object() && depth < 1) {
+      out += SummaryCells(v, depth + 1);
+    } else if (v.is_number_float()) {
+      out += fmt::format("<span class=kv>{}: {:.4g}</span> ", Escape(k), v.get<double>());
+    } else if (v.is_primitive()) {
+      out += fmt::format("<span class=kv>{}: {}</span> ", Escape(k), Escape(v.dump()));
+    }
+  }
+  return out;
+}
+
+void CollectWarnings(const nlohmann::json& j, const std::string& stage,
+                     std::vector<std::string>* out) {
+  if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) {
+      if (k == "warnings" && v.is_array()) {
+        for (const auto& w : v) {
+          out->push_back(stage + ": " + (w.is_string() ? w.get<std::string>() : w.dump()));
+        }
+      } else {
+        CollectWarnings(v, stage, out);
+      }
+    }
+  }
+}
+
+struct PoseRow {
+  int frame;
+  Rigid3 head_from_helmet;
+};
+
+// head_from_helmet.csv: frame,r00,...,r22,tx,ty,tz (docs/formats.md).
+std::vector<PoseRow> ReadPoses(const fs::path& path) {
+  static const std::vector<std::string> header = {"frame", "r00", "r01", "r02", "r10", "r11", "r12",
+                                                  "r20",   "r21", "r22", "tx",  "ty",  "tz"};
+  std::vector<PoseRow> rows;
+  ForEachCsvRow(path, header, [&](const CsvRow& row) {
+    PoseRow p{row.Int(0), Rigid3::Identity()};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) p.head_from_helmet.linear()(r, c) = row.Finite(1 + 3 * r + c);
+    }
+    p.head_from_helmet.translation() = Vec3(row.Finite(10), row.Finite(11), row.Finite(12));
+    rows.push_back(p);
+  });
+  return rows;
+}
+
+// Rotation angle of `r` (deg), through the quaternion: exact near 0, where
+// acos((trace - 1) / 2) loses half the digits.
+double RotationDeg(const Mat3& r) {
+  return Eigen::AngleAxisd(Eigen::Quaterniond(r).normalized()).angle() * 180 / M_PI;
+}
+
+class ReportWriter {
+ public:
+  ReportWriter(const ReportInput& input, const ReportOptions& options)
+      : in_(input), options_(options), work_(input.work), shot_(input.shot) {}
+
+  ReportSummary Write();
+
+ private:
+  fs::path Stage(const std::string& stage, const std::string& file) const {
+    return work_ / stage / file;
+  }
+  void Section(const std::string& title) { html_ += "<h2>" + Escape(title) + "</h2>\n"; }
+  void Plot(const std::vector<PlotSeries>& series, PlotOptions o) { html_ += SvgLinePlot(series, o) + "\n"; }
+  void Note(const std::string& text) { html_ += "<p>" + text + "</p>\n"; }
+
+  void StageTable();
+  void TrackSection();
+  void TriangulateSection();
+  void StabilizeSection();
+  void JawSection();
+  void SolveSection(const Actor& actor);
+  void ContactSheet(const Actor& actor);
+  // The box around `camera`'s named dots of the whole shot, with a margin,
+  // inside an image of `size` (the whole image without tracks).
+  cv::Rect DotsBox(const std::string& camera, cv::Size size) const;
+
+  ReportInput in_;
+  ReportOptions options_;
+  fs::path work_, shot_;
+  std::string html_;
+  ReportSummary summary_;
+  std::map<std::tuple<int, std::string, std::string>, Vec2> named_;  // (frame, camera, marker) -> px
+  std::vector<Track2d> tracks_;
+  MeshSequence recon_;
+  std::optional<MeshSequence> truth_;
+  std::map<int, Eigen::VectorXd> vertex_error_;  // frame -> per-vertex error (mm)
+};
+
+void ReportWriter::StageTable() {
+  Section("Stages");
+  html_ += "<table><tr><th>stage</th><th>state</th><th>time</th><th>summary</th></tr>\n";
+  for (const std::string& stage : PipelineStages()) {
+    if (stage == "report") continue;
+    const fs::path file = Stage(stage, "summary.json");
+    if (!Exists(file)) {
+      html_ += fmt::format("<tr><td>{}</td><td class=bad>missing</td><td></td><td></td></tr>\n", stage);
+      continue;
+    }
+    ++summary_.stages_present;
+    nlohmann::json s;
+    try {
+      s = nlohmann::json::parse(ReadFile(file));
+    } catch (const std::exception& e) {
+      ThrowInputError(file, 0, "not JSON: {}", e.what());
+    }
+    CollectWarnings(s, stage, &summary_.warnings);
+    const nlohmann::json report = s.value("report", nlohmann::json::object());
+    const bool skipped = report.contains("skipped");
+    html_ += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.1f} s</td><td>{}</td></tr>\n", stage,
+                         skipped ? "skipped: " + Escape(report["skipped"].get<std::string>()) : "done",
+                         s.value("seconds", 0.0), SummaryCells(report));
+  }
+  html_ += "</table>\n";
+}
+
+void ReportWriter::TrackSection() {
+  const fs::path file = Stage("track", "tracks_2d.csv");
+  if (!Exists(file)) return;
+  Section("Track");
+  tracks_ = ReadTracks2dCsv(file);
+  std::map<std::string, std::map<int, int>> per_camera;  // camera -> frame -> named dots
+  for (const Track2d& t : tracks_) {
+    ++per_camera[t.camera][t.frame];
+    named_[{t.frame, t.camera, t.marker}] = t.pixel;
+  }
+  std::vector<PlotSeries> series;
+  for (const auto& [camera, counts] : per_camera) {
+    PlotSeries s{camera, {}};
+    for (const auto& [f, n] : counts) s.points.emplace_back(f, n);
+    series.push_back(s);
+  }
+  Plot(series, {"named dots per frame", "frame", "dots", 640, 220, true});
+  const fs::path truth_file = shot_ / "dots_2d.csv";
+  if (!Exists(truth_file)) return;
+  // Against the shot's ground truth: centre error of wholly visible dots,
+  // names given to the wrong dot, recall.
+  std::map<std::pair<int, std::string>, std::vector<const Dot2dTruth*>> by_view;
+  const std::vector<Dot2dTruth> dots = ReadDots2dCsv(truth_file);
+  std::map<std::tuple<int, std::string, std::string>, const Dot2dTruth*> truth;
+  for (const Dot2dTruth& d : dots) {
+    truth[{d.frame, d.camera, d.marker}] = &d;
+    if (d.visible) by_view[{d.frame, d.camera}].push_back(&d);
+  }
+  std::vector<double> errors;
+  std::map<int, std::vector<double>> per_frame;
+  int wrong = 0, hidden_rows = 0, full = 0, full_named = 0;
+  for (const Track2d& t : tracks_) {
+    const auto it = truth.find({t.frame, t.camera, t.marker});
+    if (it == truth.end() || !it->second->visible) {
+      ++hidden_rows;
+      continue;
+    }
+    const Dot2dTruth& d = *it->second;
+    const double own = (t.pixel - d.pixel).norm();
+    bool nearer_other = false;
+    for (const Dot2dTruth* o : by_view[{t.frame, t.camera}]) {
+      if (o != &d && (t.pixel - o->pixel).norm() < own) nearer_other = true;
+    }
+    wrong += nearer_other || own > 2;
+    if (d.has_centroid) {
+      const double e = (t.pixel - d.centroid).norm();
+      errors.push_back(e);
+      per_frame[t.frame].push_back(e);
+    }
+  }
+  for (const Dot2dTruth& d : dots) {
+    if (d.disc != DotDiscState::kFull) continue;
+    if (!named_.count({d.frame, d.camera, d.marker})) {
+      if (d.frame < (tracks_.empty() ? 0 : tracks_.front().frame) ||
+          d.frame > (tracks_.empty() ? 0 : tracks_.back().frame)) continue;
+    } else {
+      ++full_named;
+    }
+    ++full;
+  }
+  PlotSeries median{"median", {}}, p95{"p95", {}};
+  for (const auto& [f, e] : per_frame) {
+    median.points.emplace_back(f, Percentile(e, 0.5));
+    p95.points.emplace_back(f, Percentile(e, 0.95));
+  }
+  Plot({median, p95}, {"dot centre error against the truth (full dots)", "frame", "px", 640, 220, true});
+  summary_.accuracy["track"] = {{"full_dot_error_median_px", Percentile(errors, 0.5)},
+                                {"full_dot_error_p95_px", Percentile(errors, 0.95)},
+                                {"full_named_fraction", full ? double(full_named) / full : 0.0},
+                                {"wrong_names", wrong},
+                                {"rows_on_hidden_dots", hidden_rows}};
+  Note(fmt::format("Against the ground truth: full dots named {:.2f} %, centre error median {:.3f} px, "
+                   "p95 {:.3f} px; {} rows named a wrong dot; {} rows on hidden dots.",
+                   100.0 * (full ? double(full_named) / full : 0.0), Percentile(errors, 0.5),
+                   Percentile(errors, 0.95), wrong, hidden_rows));
+}
+
+void ReportWriter::TriangulateSection() {
+  const fs::path file = Stage("triangulate", "bundles_helmet.csv");
+  if (!Exists(file)) return;
+  Section("Triangulate");
+  const std::vector<BundleFrame> bundles = ReadBundlesCsv(file);
+  PlotSeries count{"bundles", {}};
+  for (const BundleFrame& f : bundles) count.points.emplace_back(f.frame, f.bundles.size());
+  Plot({count}, {"triangulated bundles per frame", "frame", "bundles", 640, 220, true});
+  const fs::path truth_file = shot_ / "bundles_helmet.csv";
+  if (!Exists(truth_file)) return;
+  std::map<int, const BundleFrame*> truth;
+  const std::vector<BundleFrame> truth_frames = ReadBundlesCsv(truth_file);
+  for (const BundleFrame& f : truth_frames) truth[f.frame] = &f;
+  std::vector<double> all;
+  PlotSeries rms{"rms", {}};
+  for (const BundleFrame& f : bundles) {
+    const auto t = truth.find(f.frame);
+    if (t == truth.end()) continue;
+    std::vector<double> e;
+    for (const auto& [marker, p] : f.bundles) {
+      const auto m = t->second->bundles.find(marker);
+      if (m != t->second->bundles.end()) e.push_back((p - m->second).norm());
+    }
+    all.insert(all.end(), e.begin(), e.end());
+    rms.points.emplace_back(f.frame, Rms(e));
+  }
+  Plot({rms}, {"bundle error against the truth (helmet space)", "frame", "mm", 640, 220, true});
+  summary_.accuracy["triangulate"] = {{"bundle_error_median_mm", Percentile(all, 0.5)},
+                                      {"bundle_error_rms_mm", Rms(all)},
+                                      {"bundle_error_p99_mm", Percentile(all, 0.99)}};
+  Note(fmt::format("Against the ground truth: median {:.3f} mm, RMS {:.3f} mm, p99 {:.3f} mm over {} bundles.",
+                   Percentile(all, 0.5), Rms(all), Percentile(all, 0.99), all.size()));
+}
+
+void ReportWriter::StabilizeSection() {
+  const fs::path file = Stage("stabilize", "head_from_helmet.csv");
+  if (!Exists(file)) return;
+  Section("Stabilize");
+  const std::vector<PoseRow> poses = ReadPoses(file);
+  if (poses.empty()) return;
+  PlotSeries t{"translation (mm)", {}}, r{"rotation (deg)", {}};
+  for (const PoseRow& p : poses) {
+    const Rigid3 d = p.head_from_helmet * poses.front().head_from_helmet.inverse();
+    t.points.emplace_back(p.frame, d.translation().norm());
+    r.points.emplace_back(p.frame, RotationDeg(d.linear()));
+  }
+  Plot({t, r}, {"head motion in the helmet since the first frame", "frame", "mm / deg", 640, 220, true});
+  const fs::path truth_file = shot_ / "head_from_helmet.csv";
+  if (!Exists(truth_file)) return;
+  std::map<int, Rigid3> truth;
+  for (const PoseRow& p : ReadPoses(truth_file)) truth[p.frame] = p.head_from_helmet;
+  std::vector<double> te, re;
+  PlotSeries et{"translation (mm)", {}}, er{"rotation (deg)", {}};
+  for (const PoseRow& p : poses) {
+    const auto it = truth.find(p.frame);
+    if (it == truth.end()) continue;
+    te.push_back((p.head_from_helmet.translation() - it->second.translation()).norm());
+    re.push_back(RotationDeg(p.head_from_helmet.linear() * it->second.linear().transpose()));
+    et.points.emplace_back(p.frame, te.back());
+    er.points.emplace_back(p.frame, re.back());
+  }
+  Plot({et, er}, {"head pose error against the truth", "frame", "mm / deg", 640, 220, true});
+  summary_.accuracy["stabilize"] = {{"translation_rms_mm", Rms(te)}, {"rotation_rms_deg", Rms(re)}};
+  Note(fmt::format("Against the ground truth: translation RMS {:.3f} mm, rotation RMS {:.4f} deg.",
+                   Rms(te), Rms(re)));
+}
+
+void ReportWriter::JawSection() {
+  const fs::path file = Stage("jaw", "jaw.csv");
+  if (!Exists(file)) return;
+  Section("Jaw");
+  const std::vector<JawFrame> jaw = ReadJawCsv(file);
+  std::map<int, JawPose> truth;
+  if (Exists(shot_ / "jaw.csv")) {
+    for (const JawFrame& j : ReadJawCsv(shot_ / "jaw.csv")) truth[j.frame] = j.pose;
+  }
+  const auto& names = JawPose::ParameterNames();
+  nlohmann::json accuracy;
+  for (size_t i = 0; i < names.size(); ++i) {
+    PlotSeries est{"estimated", {}}, tru{"truth", {}};
+    std::vector<double> e;
+    for (const JawFrame& j : jaw) {
+      est.points.emplace_back(j.frame, j.pose.ToArray()[i]);
+      const auto it = truth.find(j.frame);
+      if (it != truth.end()) {
+        tru.points.emplace_back(j.frame, it->second.ToArray()[i]);
+        e.push_back(j.pose.ToArray()[i] - it->second.ToArray()[i]);
+      }
+    }
+    Plot({est, tru}, {names[i], "frame", names[i], 640, 180, false});
+    if (!e.empty()) accuracy[names[i] + "_rms"] = Rms(e);
+  }
+  if (!accuracy.is_null()) {
+    summary_.accuracy["jaw"] = accuracy;
+    Note("Against the ground truth (RMS): " + SummaryCells(accuracy));
+  }
+}
+
+void ReportWriter::SolveSection(const Actor& actor) {
+  const fs::path file = Stage("solve", "mesh.pc2");
+  if (!Exists(file)) return;
+  Section("Solve");
+  recon_ = ReadMeshSequence(file, &actor.neutral);
+  const fs::path diag = Stage("solve", "diagnostics.json");
+  if (Exists(diag)) {
+    const nlohmann::json d = nlohmann::json::parse(ReadFile(diag));
+    PlotSeries outside{"outside their data (%)", {}}, residual{"mean residual (0.01 mm)", {}};
+    for (const auto& f : d.value("frames", nlohmann::json::array())) {
+      const int frame = f.value("frame", 0);
+      if (!f.value("ok", false)) {
+        summary_.warnings.push_back(fmt::format("solve: frame {} flagged: {}", frame,
+                                                f.value("reason", std::string())));
+        continue;
+      }
+      int n = 0, projected = 0;
+      double res = 0;
+      for (const auto& b : f.value("bundles", nlohmann::json::array())) {
+        if (b.value("status", std::string()) == "filled") continue;
+        ++n;
+        projected += b.value("status", std::string()) == "projected";
+        res += b.value("residual_mm", 0.0);
+      }
+      if (n == 0) continue;
+      outside.points.emplace_back(frame, 100.0 * projected / n);
+      residual.points.emplace_back(frame, 100.0 * res / n);
+    }
+    Plot({outside, residual}, {"solve: bundles outside their data, bundle residual", "frame", "", 640, 220, true});
+  }
+  if (!Exists(shot_ / "truth.pc2")) return;
+  truth_ = ReadMeshSequence(shot_ / "truth.pc2", &actor.neutral);
+  std::vector<MatX3d> t, r;
+  std::vector<int> numbers;
+  for (size_t i = 0; i < recon_.frames.size(); ++i) {
+    const int frame = recon_.start_frame + static_cast<int>(i);
+    const int ti = frame - truth_->start_frame;
+    if (ti < 0 || ti >= static_cast<int>(truth_->frames.size())) continue;
+    t.push_back(truth_->frames[ti]);
+    r.push_back(recon_.frames[i]);
+    numbers.push_back(frame);
+    vertex_error_[frame] = VertexErrors(t.back(), r.back());
+  }
+  if (numbers.empty()) return;
+  const SequenceEvaluator evaluator(actor, MeshMetricsOptions{});
+  const SequenceMetrics m = evaluator.Evaluate(t, r, numbers, nullptr);
+  PlotSeries mean{"face mean", {}}, p95{"face p95", {}};
+  for (const FrameMetrics& f : m.per_frame) {
+    mean.points.emplace_back(f.frame, f.face.mean);
+    p95.points.emplace_back(f.frame, f.face.p95);
+  }
+  Plot({mean, p95}, {"mesh error against the truth (face region)", "frame", "mm", 640, 220, true});
+  summary_.accuracy["solve"] = {{"face_mean_mm", m.face.mean},   {"face_p95_mm", m.face.p95},
+                                {"face_max_mm", m.face.max},     {"all_mean_mm", m.all.mean},
+                                {"detail_face_mm", m.detail_face}, {"flicker_face", m.flicker_face.mean},
+                                {"frames", m.frames}};
+  Note(fmt::format("Against the ground truth: face mean {:.4f} mm, p95 {:.4f} mm, max {:.3f} mm over {} "
+                   "frames.",
+                   m.face.mean, m.face.p95, m.face.max, m.frames));
+  MeshRenderOptions render;
+  render.height = options_.mesh_px * 2;
+  render.width = options_.mesh_px * 8 / 5;
+  const cv::Mat heat = WithColorBar(
+      RenderMeshScalars(actor.neutral, m.mean_vertex_error, 0, options_.error_max_mm,
+                        ColorMap::kViridis, render),
+      ColorMap::kViridis, 0, options_.error_max_mm, "mm");
+  WritePng(fs::path(in_.out) / "mesh_error.png", heat);
+  html_ += "<p>Mean error per vertex over the shot, on the neutral:</p>" + ImgTag(heat, "mean error") + "\n";
+}
+
+cv::Rect ReportWriter::DotsBox(const std::string& camera, cv::Size size) const {
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (const Track2d& t : tracks_) {
+    if (t.camera != camera) continue;
+    x0 = std::min(x0, t.pixel.x());
+    y0 = std::min(y0, t.pixel.y());
+    x1 = std::max(x1, t.pixel.x());
+    y1 = std::max(y1, t.pixel.y());
+  }
+  const cv::Rect whole(0, 0, size.width, size.height);
+  if (x0 > x1) return whole;
+  const double margin = 0.12 * std::max(x1 - x0, y1 - y0) + 10;
+  const cv::Rect box(cv::Point(static_cast<int>(x0 - margin), static_cast<int>(y0 - margin)),
+                     cv::Point(static_cast<int>(x1 + margin), static_cast<int>(y1 + margin)));
+  const cv::Rect clipped = box & whole;
+  return clipped.area() > 0 ? clipped : whole;
+}
+
+void ReportWriter::ContactSheet(const Actor& actor) {
+  if (options_.contact_frames == 0 || recon_.frames.empty()) return;
+  std::vector<std::string> names = {"cam0", "cam1"};
+  const fs::path cal = Stage("calibrate", "calibration.yaml");
+  if (Exists(cal)) {
+    names.clear();
+    for (const HelmetCamera& c : ReadCalibration(cal).cameras) names.push_back(c.name);
+  }
+  const int first = recon_.start_frame;
+  const int last = first + static_cast<int>(recon_.frames.size()) - 1;
+  std::set<int> chosen;
+  const int k = options_.contact_frames;
+  for (int i = 0; i < k; ++i) chosen.insert(first + (last - first) * (2 * i + 1) / (2 * k));
+  FootageOptions footage;
+  footage.frames = fmt::format("{}:{}", *chosen.begin(), *chosen.rbegin());
+  std::vector<cv::Mat> rows;
+  try {
+    FootageReader reader(shot_, names, footage);
+    FootageFrame frame;
+    MeshRenderOptions render;
+    render.height = options_.mesh_px;
+    render.width = options_.mesh_px * 4 / 5;
+    while (reader.Next(&frame)) {
+      if (!chosen.count(frame.frame)) continue;
+      std::vector<cv::Mat> panels;
+      std::vector<std::string> labels;
+      for (int c = 0; c < reader.num_cameras(); ++c) {
+        cv::Mat bgr;
+        if (frame.images[c].empty()) {
+          bgr = cv::Mat(reader.image_size(c), CV_8UC3, cv::Scalar(40, 40, 90));
+        } else {
+          cv::cvtColor(ToGrey8(frame.images[c]), bgr, cv::COLOR_GRAY2BGR);
+        }
+        // Framed on the camera's named dots over the shot (the fisheye sees
+        // far more than the face), so the dots can be told apart.
+        const cv::Rect crop = DotsBox(names[c], bgr.size());
+        bgr = bgr(crop).clone();
+        const double s = static_cast<double>(options_.mesh_px) / bgr.rows;
+        cv::resize(bgr, bgr, cv::Size(), s, s, s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+        for (const auto& [key, px] : named_) {
+          if (std::get<0>(key) != frame.frame || std::get<1>(key) != names[c]) continue;
+          const cv::Point2d p((px.x() - crop.x + 0.5) * s - 0.5, (px.y() - crop.y + 0.5) * s - 0.5);
+          cv::circle(bgr, p, 3, cv::Scalar(80, 220, 80), 1, cv::LINE_AA);
+        }
+        panels.push_back(bgr);
+        labels.push_back(fmt::format("frame {} {}", frame.frame, names[c]));
+      }
+      const int i = frame.frame - recon_.start_frame;
+      TriMesh mesh = actor.neutral;
+      mesh.V = recon_.frames[i];
+      panels.push_back(RenderMesh(mesh, render));
+      labels.push_back("reconstruction");
+      const auto err = vertex_error_.find(frame.frame);
+      if (err != vertex_error_.end()) {
+        panels.push_back(RenderMeshScalars(mesh, err->second, 0, options_.error_max_mm,
+                                           ColorMap::kViridis, render));
+        labels.push_back(fmt::format("error, 0-{} mm", options_.error_max_mm));
+      }
+      rows.push_back(ComposeLabelledPanels(panels, labels));
+    }
+  } catch (const InputError& e) {
+    summary_.warnings.push_back(std::string("report: no contact sheet: ") + e.what());
+    return;
+  }
+  if (rows.empty()) return;
+  int width = 0;
+  for (const cv::Mat& r : rows) width = std::max(width, r.cols);
+  for (cv::Mat& r : rows) {
+    if (r.cols < width) cv::copyMakeBorder(r, r, 0, 0, 0, width - r.cols, cv::BORDER_CONSTANT, cv::Scalar(38, 38, 38));
+  }
+  cv::Mat sheet;
+  cv::vconcat(rows, sheet);
+  WritePng(fs::path(in_.out) / "contact_sheet.png", sheet);
+  Section("Contact sheet");
+  html_ += ImgTag(sheet, "contact sheet") + "\n";
+}
+
+ReportSummary ReportWriter::Write() {
+  const Actor actor = LoadActor(in_.actor);
+  EnsureDirectory(in_.out);
+  summary_.has_truth = Exists(shot_ / "truth.pc2") || Exists(shot_ / "dots_2d.csv");
+  StageTable();
+  TrackSection();
+  TriangulateSection();
+  StabilizeSection();
+  JawSection();
+  SolveSection(actor);
+  ContactSheet(actor);
+  std::string warnings = "<h2>Warnings</h2>\n";
+  if (summary_.warnings.empty()) warnings += "<p>none</p>\n";
+  warnings += "<ul>\n";
+  for (const std::string& w : summary_.warnings) warnings += "<li>" + Escape(w) + "</li>\n";
+  warnings += "</ul>\n";
+  std::string page = fmt::format(
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>hmc run report: {}</title>\n"
+      "<style>body{{font-family:sans-serif;max-width:1400px;margin:1em auto;color:#222}}"
+      "table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 6px;text-align:left;"
+      "vertical-align:top;font-size:13px}}.kv{{display:inline-block;margin-right:.8em}}"
+      ".bad{{color:#b00}}img{{max-width:100%}}svg{{margin:4px}}</style></head><body>\n"
+      "<h1>hmc run report</h1>\n<p>workspace <code>{}</code>, shot <code>{}</code>, actor "
+      "<code>{}</code>{}</p>\n",
+      Escape(fs::path(in_.work).filename().string()), Escape(in_.work), Escape(in_.shot),
+      Escape(actor.name), summary_.has_truth ? " (ground truth present)" : "");
+  page += warnings + html_ + "</body></html>\n";
+  WriteFileAtomic(fs::path(in_.out) / "report.html", page);
+  if (!summary_.accuracy.is_null()) {
+    WriteFileAtomic(fs::path(in_.out) / "accuracy.json", summary_.accuracy.dump(1) + "\n");
+  }
+  return summary_;
+}
+
+}  // namespace
+
+ReportSummary WriteRunReport(const ReportInput& input, const ReportOptions& options) {
+  return ReportWriter(input, options).Write();
+}
+
+}  // namespace hmc

@@ -1,0 +1,54 @@
+// The run report (`hmc report`, the last stage of `hmc run`): one
+// self-contained HTML page a TD opens after a run -- per stage its summary;
+// plots over frames (named dots per camera, triangulated bundles and their
+// residuals, head motion and stabilization residual, jaw curves, the solve's
+// bundles outside their data and residuals); a contact sheet of footage
+// frames with the named dots beside the reconstructed mesh; warnings with
+// their frames. When the shot folder holds ground truth (a synthetic shot:
+// docs/formats.md, "Shot ground truth"), the error against it per stage (px,
+// mm, degrees) and an error heat map of the mesh. Pictures are PNGs
+// rendered by hmc, embedded in the page (no network needed) and also
+// written beside it. docs/pipeline.md, "The report".
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/options.h"
+
+namespace hmc {
+
+struct ReportOptions {
+  int contact_frames = 4;       // footage frames on the contact sheet (0 = none)
+  double contact_scale = 0.35;  // footage image scale on the contact sheet
+  int mesh_px = 320;            // height of the mesh renders (px)
+  double error_max_mm = 0.5;    // top of the error colour scale (mm)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct ReportInput {
+  std::string work;   // the run's workspace
+  std::string shot;   // the shot folder (footage; ground truth if present)
+  std::string actor;  // the actor package
+  std::string out;    // folder to write report.html and its pictures into
+};
+
+struct ReportSummary {
+  int stages_present = 0;
+  bool has_truth = false;
+  std::vector<std::string> warnings;
+  nlohmann::json accuracy;  // per stage, against the ground truth when present
+  std::string BriefReport() const;
+};
+
+// Reads what the workspace holds (a stage that did not run is shown as
+// missing), writes OUT/report.html, OUT/contact_sheet.png and, with ground
+// truth, OUT/mesh_error.png and OUT/accuracy.json. Throws InputError for
+// unreadable files, naming them.
+ReportSummary WriteRunReport(const ReportInput& input, const ReportOptions& options);
+
+}  // namespace hmc

@@ -1,0 +1,362 @@
+#include "pipeline/run_pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <system_error>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
+
+#include "core/actor.h"
+#include "core/calibration.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/hash.h"
+#include "core/text.h"
+#include "pipeline/workspace.h"
+#include "tracking/footage_reader.h"
+
+namespace hmc {
+
+namespace fs = std::filesystem;
+
+const std::vector<std::string>& PipelineStages() {
+  static const std::vector<std::string> stages = {"calibrate", "track", "triangulate", "stabilize",
+                                                  "jaw",       "solve", "report"};
+  return stages;
+}
+
+void RunOptions::Register(OptionFields* fields) {
+  fields->Add("from", &from, "first stage to redo even if complete (\"\" = redo only what changed)");
+  fields->Add("to", &to, "last stage to run");
+  fields->Add("frames", &frames, "frame range A:B of the footage (\"\" = all)");
+  fields->Add("calibrate", &calibrate,
+              "refine the rig from the helmet tags (false: use --calibration as it is)");
+  fields->Add("export", &export_formats,
+              "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
+}
+
+namespace {
+
+int StageIndex(const std::string& name) {
+  const auto& stages = PipelineStages();
+  const auto it = std::find(stages.begin(), stages.end(), name);
+  return it == stages.end() ? -1 : static_cast<int>(it - stages.begin());
+}
+
+std::vector<std::string> ExportFormats(const std::string& text) {
+  std::vector<std::string> formats;
+  std::string_view rest(text);
+  while (!rest.empty()) {
+    const size_t comma = rest.find(',');
+    const std::string_view item = Trim(rest.substr(0, comma));
+    if (!item.empty()) formats.emplace_back(item);
+    rest.remove_prefix(comma == std::string_view::npos ? rest.size() : comma + 1);
+  }
+  return formats;
+}
+
+}  // namespace
+
+bool RunOptions::Check() const {
+  bool ok = true;
+  auto fail = [&](const std::string& message) {
+    spdlog::error("run options: {}", message);
+    ok = false;
+  };
+  if (!from.empty() && StageIndex(from) < 0) {
+    fail(fmt::format("from '{}' is not a stage ({})", from, fmt::join(PipelineStages(), ", ")));
+  }
+  if (StageIndex(to) < 0) {
+    fail(fmt::format("to '{}' is not a stage ({})", to, fmt::join(PipelineStages(), ", ")));
+  }
+  if (ok && !from.empty() && StageIndex(from) > StageIndex(to)) fail("from comes after to");
+  try {
+    ParseFrameRange(frames, "frames");
+  } catch (const InputError& e) {
+    fail(e.what());
+  }
+  for (const std::string& f : ExportFormats(export_formats)) {
+    if (f != "usda" && f != "mdd" && f != "obj") fail(fmt::format("export format '{}' is not usda, mdd or obj", f));
+  }
+  return ok;
+}
+
+std::string RunSummary::BriefReport() const {
+  std::vector<std::string> parts;
+  for (const StageRun& s : stages) {
+    if (s.status == "not run") continue;
+    parts.push_back(s.status == "done" ? fmt::format("{} {:.1f} s", s.stage, s.seconds)
+                                       : fmt::format("{} {}", s.stage, s.status));
+  }
+  return fmt::format("{} in {:.1f} s", fmt::join(parts, ", "), seconds);
+}
+
+namespace {
+
+// The run config: a mapping from stage name to that stage's options (the
+// keys of configs/<stage>.yaml). Each section is handed to the stage's
+// command as --config, and its canonical text is the stage's options key.
+std::map<std::string, std::string> ReadRunConfig(const std::string& file) {
+  std::map<std::string, std::string> sections;
+  if (file.empty()) return sections;
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file);
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(file, e.mark.line + 1, "not valid YAML: {}", e.msg);
+  }
+  if (root.IsNull()) return sections;
+  if (!root.IsMap()) ThrowInputError(file, 0, "a run config is a mapping from stage names to options");
+  for (const auto& item : root) {
+    const std::string stage = item.first.Scalar();
+    if (stage == "run") continue;  // the run's own options (hmc run reads them)
+    if (StageIndex(stage) < 0 || stage == "report") {
+      ThrowInputError(file, item.first.Mark().line + 1, "unknown section '{}' (expected run or a stage: {})",
+                      stage, "calibrate, track, triangulate, stabilize, jaw, solve");
+    }
+    if (sections.count(stage)) {
+      ThrowInputError(file, item.first.Mark().line + 1, "stage '{}' given twice", stage);
+    }
+    if (!item.second.IsMap() && !item.second.IsNull()) {
+      ThrowInputError(file, item.second.Mark().line + 1, "'{}' must be a mapping of options", stage);
+    }
+    YAML::Emitter out;
+    out << item.second;
+    sections[stage] = std::string(out.c_str()) + "\n";
+  }
+  return sections;
+}
+
+// Everything one stage needs to run: what it depends on and how to run it.
+struct StagePlan {
+  StageKey key;
+  std::string skip_reason;  // non-empty: the stage is not run (recorded)
+  // Runs the stage's command(s) with outputs in `dir`; returns the stage's
+  // report for summary.json.
+  std::function<nlohmann::json(const fs::path& dir)> run;
+};
+
+class Pipeline {
+ public:
+  Pipeline(const RunInput& input, const RunOptions& options, const CommandRunner& run_command)
+      : input_(input), options_(options), run_command_(run_command), work_(input.out) {}
+
+  RunSummary Run();
+
+ private:
+  StagePlan Plan(const std::string& stage) const;
+  // The stage's own command line, with --config for its section of the run
+  // config (written into `dir`) when there is one.
+  nlohmann::json RunCommand(const std::string& stage, std::vector<std::string> args,
+                            const fs::path& dir) const;
+  fs::path Out(const std::string& stage, const std::string& file) const {
+    return work_.StageDir(stage) / file;
+  }
+  std::vector<std::string> FootageFlags() const;
+  void AddFootageInputs(StageKey* key) const;
+
+  RunInput input_;
+  RunOptions options_;
+  CommandRunner run_command_;
+  Workspace work_;
+  std::map<std::string, std::string> config_;
+  std::string actor_hash_;
+  bool actor_has_jaw_ = false;
+};
+
+std::vector<std::string> Pipeline::FootageFlags() const {
+  std::vector<std::string> flags;
+  if (!options_.frames.empty()) flags.insert(flags.end(), {"--frames", options_.frames});
+  return flags;
+}
+
+void Pipeline::AddFootageInputs(StageKey* key) const {
+  // The footage as the reader finds it; names from the calibration.
+  const HelmetRig rig = ReadCalibration(input_.calibration);
+  std::vector<std::string> names;
+  for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
+  FootageOptions footage;
+  footage.frames = options_.frames;
+  const FootageReader reader(input_.shot, names, footage);
+  for (int c = 0; c < reader.num_cameras(); ++c) {
+    key->AddInput("footage." + reader.camera_name(c), reader.source(c));
+  }
+  key->AddInputText("frames", options_.frames);
+}
+
+nlohmann::json Pipeline::RunCommand(const std::string& stage, std::vector<std::string> args,
+                                    const fs::path& dir) const {
+  const auto section = config_.find(stage);
+  if (section != config_.end()) {
+    const fs::path config = dir / "run_config.yaml";
+    WriteFileAtomic(config, section->second);
+    args.insert(args.end(), {"--config", config.string()});
+  }
+  spdlog::info("run: hmc {}", fmt::join(args, " "));
+  const int code = run_command_(args);
+  if (code != 0) throw InputError(fmt::format("run: stage {} failed (exit code {})", stage, code));
+  return nlohmann::json::object();
+}
+
+StagePlan Pipeline::Plan(const std::string& stage) const {
+  StagePlan plan;
+  plan.key.stage = stage;
+  const auto section = config_.find(stage);
+  plan.key.options = HashHex(HashBytes(section == config_.end() ? "" : section->second));
+  StageKey& key = plan.key;
+  const fs::path calibration = Out("calibrate", "calibration.yaml");
+  if (stage == "calibrate") {
+    key.AddInput("calibration", input_.calibration);
+    key.AddInputText("refine", options_.calibrate ? "tags" : "none");
+    if (!options_.calibrate) {
+      plan.run = [this](const fs::path& dir) {
+        WriteFileAtomic(dir / "calibration.yaml", ReadFile(input_.calibration));
+        return nlohmann::json{{"calibration", "given (run.calibrate false): copied as it is"}};
+      };
+      return plan;
+    }
+    AddFootageInputs(&key);
+    plan.run = [this](const fs::path& dir) {
+      std::vector<std::string> args = {"calibrate", "--shot", input_.shot, "--calibration",
+                                       input_.calibration, "--out", (dir / "calibration.yaml").string(),
+                                       "--report", (dir / "report.json").string()};
+      const std::vector<std::string> footage = FootageFlags();
+      args.insert(args.end(), footage.begin(), footage.end());
+      return RunCommand("calibrate", args, dir);
+    };
+  } else if (stage == "track") {
+    AddFootageInputs(&key);
+    key.AddInput("calibration", calibration);
+    key.AddInputText("actor", actor_hash_);
+    plan.run = [this, calibration](const fs::path& dir) {
+      std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
+                                       calibration.string(), "--actor", input_.actor, "--out",
+                                       (dir / "tracks_2d.csv").string(), "--diagnostics",
+                                       (dir / "diagnostics.json").string()};
+      const std::vector<std::string> footage = FootageFlags();
+      args.insert(args.end(), footage.begin(), footage.end());
+      return RunCommand("track", args, dir);
+    };
+  } else if (stage == "triangulate") {
+    key.AddInput("tracks", Out("track", "tracks_2d.csv"));
+    key.AddInput("calibration", calibration);
+    plan.run = [this, calibration](const fs::path& dir) {
+      return RunCommand("triangulate",
+                        {"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
+                         "--calibration", calibration.string(), "--out",
+                         (dir / "bundles_helmet.csv").string(), "--diagnostics",
+                         (dir / "triangulation.csv").string()},
+                        dir);
+    };
+  } else if (stage == "stabilize") {
+    key.AddInput("bundles_helmet", Out("triangulate", "bundles_helmet.csv"));
+    key.AddInputText("actor", actor_hash_);
+    plan.run = [this](const fs::path& dir) {
+      return RunCommand("stabilize",
+                        {"stabilize", "--bundles", Out("triangulate", "bundles_helmet.csv").string(),
+                         "--actor", input_.actor, "--out", dir.string()},
+                        dir);
+    };
+  } else if (stage == "jaw") {
+    key.AddInput("bundles", Out("stabilize", "bundles.csv"));
+    key.AddInputText("actor", actor_hash_);
+    if (!actor_has_jaw_) {
+      plan.skip_reason = "the actor has no jaw rig: the solve runs without jaw poses";
+      return plan;
+    }
+    plan.run = [this](const fs::path& dir) {
+      return RunCommand("jaw",
+                        {"jaw", "--bundles", Out("stabilize", "bundles.csv").string(), "--actor",
+                         input_.actor, "--out", (dir / "jaw.csv").string()},
+                        dir);
+    };
+  } else if (stage == "solve") {
+    key.AddInput("bundles", Out("stabilize", "bundles.csv"));
+    if (actor_has_jaw_) key.AddInput("jaw", Out("jaw", "jaw.csv"));
+    key.AddInputText("actor", actor_hash_);
+    key.AddInputText("export", options_.export_formats);
+    plan.run = [this](const fs::path& dir) {
+      std::vector<std::string> args = {"solve", "--actor", input_.actor, "--bundles",
+                                       Out("stabilize", "bundles.csv").string(), "--out",
+                                       (dir / "mesh.pc2").string(), "--diagnostics",
+                                       (dir / "diagnostics.json").string(), "--topology",
+                                       (dir / "neutral.obj").string()};
+      if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      nlohmann::json report = RunCommand("solve", args, dir);
+      for (const std::string& format : ExportFormats(options_.export_formats)) {
+        const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
+        RunCommand("solve", {"convert", (dir / "mesh.pc2").string(), target.string(), "--topology",
+                             (dir / "neutral.obj").string()},
+                   dir);
+      }
+      return report;
+    };
+  } else if (stage == "report") {
+    for (const std::string& s : PipelineStages()) {
+      if (s == "report") continue;
+      const nlohmann::json summary = work_.ReadSummary(s);
+      key.AddInputText(s, summary.is_object() ? summary["key"].dump() : "");
+    }
+    plan.run = [this](const fs::path& dir) {
+      return RunCommand("report",
+                        {"report", "--work", work_.root().string(), "--shot", input_.shot,
+                         "--actor", input_.actor, "--out", dir.string()},
+                        dir);
+    };
+  }
+  return plan;
+}
+
+RunSummary Pipeline::Run() {
+  const auto start = std::chrono::steady_clock::now();
+  config_ = ReadRunConfig(input_.config);
+  const Actor actor = LoadActor(input_.actor);
+  actor_hash_ = HashHex(actor.content_hash);
+  actor_has_jaw_ = actor.jaw_rig.has_value();
+  const int last = StageIndex(options_.to);
+  const int forced = options_.from.empty() ? INT32_MAX : StageIndex(options_.from);
+  RunSummary summary;
+  for (int i = 0; i < static_cast<int>(PipelineStages().size()); ++i) {
+    const std::string& stage = PipelineStages()[i];
+    StageRun run{stage, "not run", "", 0};
+    if (i > last) {
+      summary.stages.push_back(run);
+      continue;
+    }
+    const StagePlan plan = Plan(stage);
+    if (i < forced && work_.IsComplete(plan.key)) {
+      spdlog::info("run: {} complete (inputs and options unchanged): kept", stage);
+      run.status = "complete";
+      summary.stages.push_back(run);
+      continue;
+    }
+    const auto stage_start = std::chrono::steady_clock::now();
+    if (!plan.skip_reason.empty()) {
+      spdlog::info("run: {} skipped: {}", stage, plan.skip_reason);
+      work_.RunStage(plan.key, [&](const fs::path&) {
+        return nlohmann::json{{"skipped", plan.skip_reason}};
+      });
+      run.status = "skipped";
+      run.note = plan.skip_reason;
+    } else {
+      work_.RunStage(plan.key, plan.run);
+      run.status = "done";
+    }
+    run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - stage_start).count();
+    summary.stages.push_back(run);
+  }
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace
+
+RunSummary RunPipeline(const RunInput& input, const RunOptions& options,
+                       const CommandRunner& run_command) {
+  return Pipeline(input, options, run_command).Run();
+}
+
+}  // namespace hmc

@@ -1,0 +1,207 @@
+#include "pipeline/run_pipeline.h"
+
+#include <map>
+#include <stdexcept>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/actor.h"
+#include "core/calibration.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/hash.h"
+#include "core/temp_dir.h"
+#include "synth/synth_actor.h"
+
+namespace hmc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A stand-in for the hmc commands: each writes its outputs with content
+// made of its command name and the bytes of every existing file among its
+// arguments, so an output changes exactly when an input does.
+class FakeCommands {
+ public:
+  int operator()(const std::vector<std::string>& args) {
+    calls.push_back(args[0]);
+    if (args[0] == fail_on) throw std::runtime_error("killed in " + fail_on);
+    std::string content = args[0];
+    for (const std::string& a : args) {
+      std::error_code ec;
+      if (fs::is_regular_file(a, ec)) content += "|" + HashHex(HashFile(a));
+    }
+    const auto flag = [&](const std::string& name) {
+      for (size_t i = 0; i + 1 < args.size(); ++i) {
+        if (args[i] == name) return fs::path(args[i + 1]);
+      }
+      return fs::path();
+    };
+    if (args[0] == "stabilize") {
+      WriteFileAtomic(flag("--out") / "bundles.csv", content);
+      WriteFileAtomic(flag("--out") / "head_from_helmet.csv", content);
+    } else if (args[0] == "report") {
+      WriteFileAtomic(flag("--out") / "report.html", content);
+    } else if (args[0] == "convert") {
+      WriteFileAtomic(args[2], content);
+    } else {
+      WriteFileAtomic(flag("--out"), content);
+      if (!flag("--topology").empty()) WriteFileAtomic(flag("--topology"), "topology");
+    }
+    return 0;
+  }
+  std::vector<std::string> calls;
+  std::string fail_on;
+};
+
+struct Fixture {
+  TempDir dir;
+  RunInput input;
+  Fixture() {
+    SynthActorOptions actor;
+    actor.grid_u = 24;
+    actor.grid_v = 20;
+    actor.dataset_inbetweens = false;
+    actor.dataset_combos = false;
+    WriteActor(SynthesizeActor(actor), dir.path() / "actor", 17);
+    HelmetRig rig;
+    for (const char* name : {"cam0", "cam1"}) {
+      HelmetCamera c;
+      c.name = name;
+      c.camera.width = 32;
+      c.camera.height = 24;
+      c.camera.fx = c.camera.fy = 20;
+      c.camera.cx = 16;
+      c.camera.cy = 12;
+      c.cam_from_helmet = Rigid3::Identity();
+      rig.cameras.push_back(c);
+      fs::create_directories(dir.path() / "shot" / name);
+      for (int f = 1; f <= 3; ++f) {
+        cv::imwrite((dir.path() / "shot" / name / fmt::format("frame_{:06d}.png", f)).string(),
+                    cv::Mat(24, 32, CV_8U, cv::Scalar(10 * f)));
+      }
+    }
+    WriteCalibration(dir.path() / "calibration.yaml", rig);
+    input.shot = (dir.path() / "shot").string();
+    input.actor = (dir.path() / "actor").string();
+    input.calibration = (dir.path() / "calibration.yaml").string();
+    input.out = (dir.path() / "work").string();
+  }
+  std::map<std::string, std::string> Outputs() const {
+    std::map<std::string, std::string> files;
+    for (const auto& e : fs::recursive_directory_iterator(input.out)) {
+      if (e.is_regular_file() && e.path().filename() != "summary.json") {
+        files[fs::relative(e.path(), input.out).string()] = ReadFile(e.path());
+      }
+    }
+    return files;
+  }
+};
+
+std::vector<std::string> Statuses(const RunSummary& s) {
+  std::vector<std::string> out;
+  for (const StageRun& r : s.stages) out.push_back(r.stage + ":" + r.status);
+  return out;
+}
+
+TEST(RunPipelineTest, RunsEveryStageOnceThenKeepsWhatIsComplete) {
+  Fixture fx;
+  FakeCommands commands;
+  const RunSummary first = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_EQ(commands.calls,
+            (std::vector<std::string>{"calibrate", "track", "triangulate", "stabilize", "jaw",
+                                      "solve", "convert", "report"}));
+  for (const std::string& stage : PipelineStages()) {
+    EXPECT_TRUE(fs::is_regular_file(fs::path(fx.input.out) / stage / "summary.json")) << stage;
+  }
+  commands.calls.clear();
+  const RunSummary second = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_TRUE(commands.calls.empty());
+  for (const StageRun& r : second.stages) EXPECT_EQ(r.status, "complete") << r.stage;
+}
+
+TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {
+  Fixture fx;
+  FakeCommands commands;
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  // A new option of the triangulation: calibrate and track are kept.
+  WriteFileAtomic(fx.dir.path() / "run.yaml", "triangulate:\n  gate_px: 3\n");
+  fx.input.config = (fx.dir.path() / "run.yaml").string();
+  commands.calls.clear();
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_EQ(commands.calls, (std::vector<std::string>{"triangulate", "stabilize", "jaw", "solve",
+                                                      "convert", "report"}));
+  EXPECT_TRUE(fs::exists(fs::path(fx.input.out) / "triangulate" / "run_config.yaml"));
+  // New footage: the stages that read it are redone; the fake's outputs
+  // do not depend on the pixels, so the stages after them are kept (the
+  // keys are contents, not times), and the report is redone.
+  cv::imwrite(fs::path(fx.input.shot) / "cam1" / "frame_000002.png", cv::Mat(24, 32, CV_8U, cv::Scalar(99)));
+  commands.calls.clear();
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_EQ(commands.calls, (std::vector<std::string>{"calibrate", "track", "report"}));
+}
+
+TEST(RunPipelineTest, FromAndToChooseTheStages) {
+  Fixture fx;
+  FakeCommands commands;
+  RunOptions options;
+  options.to = "triangulate";
+  const RunSummary s = RunPipeline(fx.input, options, std::ref(commands));
+  EXPECT_EQ(commands.calls, (std::vector<std::string>{"calibrate", "track", "triangulate"}));
+  EXPECT_EQ(Statuses(s).back(), "report:not run");
+  commands.calls.clear();
+  options.to = "report";
+  options.from = "track";
+  RunPipeline(fx.input, options, std::ref(commands));
+  EXPECT_EQ(commands.calls.front(), "track");  // calibrate kept, track forced
+  EXPECT_EQ(commands.calls.size(), 7u);
+}
+
+TEST(RunPipelineTest, AnInterruptedRunResumesToTheSameOutputs) {
+  Fixture whole;
+  FakeCommands commands;
+  RunPipeline(whole.input, RunOptions{}, std::ref(commands));
+  const auto expected = whole.Outputs();
+
+  Fixture fx;
+  FakeCommands failing;
+  failing.fail_on = "stabilize";
+  EXPECT_THROW(RunPipeline(fx.input, RunOptions{}, std::ref(failing)), std::runtime_error);
+  EXPECT_FALSE(fs::exists(fs::path(fx.input.out) / "stabilize"));
+  FakeCommands resumed;
+  RunPipeline(fx.input, RunOptions{}, std::ref(resumed));
+  EXPECT_EQ(resumed.calls.front(), "stabilize");
+  // Same bytes as the uninterrupted run's (the fake's content holds hashes
+  // of the inputs, not paths), and nothing partial or temporary left.
+  const auto got = fx.Outputs();
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [name, content] : expected) EXPECT_EQ(got.at(name), content) << name;
+  for (const auto& e : fs::recursive_directory_iterator(fx.input.out)) {
+    EXPECT_NE(e.path().filename().string().front(), '.') << e.path();
+  }
+}
+
+TEST(RunPipelineTest, BadRunConfigsAreRefusedWithTheFile) {
+  Fixture fx;
+  FakeCommands commands;
+  WriteFileAtomic(fx.dir.path() / "run.yaml", "trak:\n  x: 1\n");
+  fx.input.config = (fx.dir.path() / "run.yaml").string();
+  try {
+    RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("run.yaml:1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("trak"), std::string::npos);
+  }
+  EXPECT_TRUE(commands.calls.empty());
+  RunOptions bad;
+  bad.from = "solve";
+  bad.to = "track";
+  EXPECT_FALSE(bad.Check());
+  bad.from = "nope";
+  EXPECT_FALSE(bad.Check());
+}
+
+}  // namespace
+}  // namespace hmc

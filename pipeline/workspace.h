@@ -1,0 +1,78 @@
+// The shot workspace of `hmc run --out WORK` (docs/formats.md, "Shot
+// workspace"): one folder per stage, `WORK/<stage>/`, holding the files the
+// stage's own command writes, its `options_used.yaml`, and `summary.json`,
+// written last.
+//
+// Resume follows Meshroom/AliceVision's node cache: a stage is complete when
+// its summary exists and records the same key -- the content hashes of its
+// inputs and of its options -- as the run about to start; a complete stage
+// is not redone. A stage is (re)done in a fresh `WORK/.<stage>.partial/`
+// that replaces `WORK/<stage>/` only once its summary is written, so a run
+// killed at any point leaves either the old complete folder or a partial
+// one that the next run removes: never a half-written stage folder that
+// looks complete, and no stale temporary files.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace hmc {
+
+// What a stage's result depends on. Two keys are equal when every input
+// hash and the options hash are equal.
+struct StageKey {
+  std::string stage;                          // folder name ("track")
+  std::map<std::string, std::string> inputs;  // input label -> content hash (hex)
+  std::string options;                        // hash (hex) of the options text
+
+  // Adds the content hash of `path` (a file, or a folder: every file in it
+  // by relative path) under `label`. Throws InputError if it cannot be read.
+  void AddInput(const std::string& label, const std::filesystem::path& path);
+  void AddInputText(const std::string& label, const std::string& text);
+
+  nlohmann::json ToJson() const;
+  bool operator==(const StageKey& other) const {
+    return stage == other.stage && inputs == other.inputs && options == other.options;
+  }
+};
+
+// The content hash of a file, or of a folder's files (sorted relative paths
+// and their contents; hidden files ignored).
+uint64_t HashPath(const std::filesystem::path& path);
+
+class Workspace {
+ public:
+  explicit Workspace(std::filesystem::path root);
+
+  const std::filesystem::path& root() const { return root_; }
+  std::filesystem::path StageDir(const std::string& stage) const { return root_ / stage; }
+
+  // True if WORK/<stage>/summary.json exists, parses, and records `key`.
+  bool IsComplete(const StageKey& key) const;
+  // The stage's summary.json (null if missing or unreadable).
+  nlohmann::json ReadSummary(const std::string& stage) const;
+
+  // Runs body(dir) with a fresh, empty WORK/.<stage>.partial/ and returns
+  // what it returns; `body` writes the stage's files there and returns the
+  // stage's own report. Then writes summary.json ({"stage", "key",
+  // "seconds", "report"}; a summary.json the stage's command wrote itself
+  // goes into the report as "command_summary") last, atomically, and moves
+  // the folder to
+  // WORK/<stage>/, replacing the old one. If `body` throws, the partial
+  // folder is removed and WORK/<stage>/ is left as it was.
+  nlohmann::json RunStage(const StageKey& key,
+                          const std::function<nlohmann::json(const std::filesystem::path&)>& body);
+
+  // Removes WORK/<stage>/ (to force a redo) and any partial folder.
+  void Invalidate(const std::string& stage) const;
+
+ private:
+  std::filesystem::path root_;
+};
+
+}  // namespace hmc

@@ -1,0 +1,460 @@
+#include "tracking/footage_reader.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <system_error>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/text.h"
+
+namespace hmc {
+
+namespace fs = std::filesystem;
+
+void FootageOptions::Register(OptionFields* fields) {
+  fields->Add("cam0", &cam0, "cam0 video or image folder (\"\" = SHOT/cam0.<ext> or SHOT/cam0/)");
+  fields->Add("cam1", &cam1, "cam1 video or image folder (\"\" = SHOT/cam1.<ext> or SHOT/cam1/)");
+  fields->Add("frames", &frames, "frame range A:B, inclusive; A: or :B open (\"\" = all)");
+  fields->Add("offset1", &offset1, "cam1 frame = cam0 frame + offset1 (frames)");
+}
+
+bool FootageOptions::Check() const {
+  bool ok = true;
+  try {
+    ParseFrameRange(frames, "frames");
+  } catch (const InputError& e) {
+    spdlog::error("footage options: {}", e.what());
+    ok = false;
+  }
+  if (offset1 < -100000 || offset1 > 100000) {
+    spdlog::error("footage options: offset1 must be in [-100000, 100000], got {}", offset1);
+    ok = false;
+  }
+  return ok;
+}
+
+FrameRange ParseFrameRange(const std::string& text, const std::string& origin) {
+  FrameRange range{INT_MIN, INT_MAX};
+  const std::string_view t = Trim(text);
+  if (t.empty()) return range;
+  const size_t colon = t.find(':');
+  if (colon == std::string_view::npos || t.find(':', colon + 1) != std::string_view::npos) {
+    throw InputError(fmt::format("{}: '{}' is not a frame range A:B", origin, text));
+  }
+  const std::string_view a = Trim(t.substr(0, colon));
+  const std::string_view b = Trim(t.substr(colon + 1));
+  if ((!a.empty() && !ParseInt(a, &range.first)) ||
+      (!b.empty() && !ParseInt(b, &range.last)) || range.first > range.last) {
+    throw InputError(fmt::format(
+        "{}: '{}' is not a frame range A:B (integers, A <= B)", origin, text));
+  }
+  return range;
+}
+
+bool FootageFrame::complete() const {
+  return std::all_of(images.begin(), images.end(),
+                     [](const cv::Mat& m) { return !m.empty(); });
+}
+
+namespace {
+
+bool IsImageFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  return ext == ".png" || ext == ".tif" || ext == ".tiff" || ext == ".jpg" ||
+         ext == ".jpeg";
+}
+
+bool IsVideoFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  return ext == ".mkv" || ext == ".mov" || ext == ".mp4" || ext == ".avi" ||
+         ext == ".mxf" || ext == ".webm";
+}
+
+// Grey, depth kept (8 or 16 bit). Colour is converted with OpenCV's
+// luminance weights; other depths are refused by the caller.
+cv::Mat ToGrey(const cv::Mat& image) {
+  if (image.channels() == 1) return image;
+  cv::Mat grey;
+  cv::cvtColor(image, grey,
+               image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+  return grey;
+}
+
+// The frame number at the end of a file stem: "frame_000017" -> 17.
+std::optional<long long> TrailingNumber(const std::string& stem) {
+  size_t end = stem.size();
+  size_t begin = end;
+  while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
+  if (begin == end || end - begin > 9) return std::nullopt;
+  long long n = 0;
+  if (!ParseInteger(std::string_view(stem).substr(begin, end - begin), &n)) return std::nullopt;
+  return n;
+}
+
+// One camera's source: decoded frames in increasing frame number.
+class CameraSource {
+ public:
+  virtual ~CameraSource() = default;
+  virtual cv::Size size() const = 0;
+  virtual int first() const = 0;
+  virtual int last() const = 0;
+  // The image of `frame` (frames are asked for in increasing order), or
+  // empty with `error` set.
+  virtual cv::Mat Read(int frame, std::string* error) = 0;
+  // True once it is known that no frame >= `frame` will come (a video that
+  // ended early: truncated, or without a declared length).
+  virtual bool EndedBefore(int frame) const { return frame > last(); }
+  virtual std::vector<std::string> warnings() const { return {}; }
+};
+
+class ImageFolderSource : public CameraSource {
+ public:
+  explicit ImageFolderSource(const fs::path& dir) : dir_(dir) {
+    std::error_code ec;
+    std::map<long long, fs::path> numbered;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+      if (!it->is_regular_file(ec) || !IsImageFile(it->path())) continue;
+      const std::optional<long long> n = TrailingNumber(it->path().stem().string());
+      if (!n) continue;
+      const auto [pos, inserted] = numbered.emplace(*n, it->path());
+      if (!inserted) {
+        ThrowInputError(dir, 0, "two images carry frame number {}: {} and {}", *n,
+                        pos->second.filename().string(), it->path().filename().string());
+      }
+    }
+    if (ec) ThrowInputError(dir, 0, "cannot list the image folder: {}", ec.message());
+    if (numbered.empty()) {
+      ThrowInputError(dir, 0, "no numbered images (PNG, TIFF, JPEG) in the folder");
+    }
+    const long long base = numbered.begin()->first;
+    for (const auto& [n, path] : numbered) files_.emplace(static_cast<int>(n - base + 1), path);
+    // The first image defines the size; it must decode.
+    std::string error;
+    const cv::Mat first_image = Decode(files_.begin()->second, &error);
+    if (first_image.empty()) ThrowInputError(files_.begin()->second, 0, "{}", error);
+    size_ = first_image.size();
+  }
+  cv::Size size() const override { return size_; }
+  int first() const override { return files_.begin()->first; }
+  int last() const override { return files_.rbegin()->first; }
+  cv::Mat Read(int frame, std::string* error) override {
+    const auto it = files_.find(frame);
+    if (it == files_.end()) {
+      *error = "no image file for this frame";
+      return {};
+    }
+    cv::Mat image = Decode(it->second, error);
+    if (!image.empty() && image.size() != size_) {
+      *error = fmt::format("{} is {}x{}, the sequence is {}x{}", it->second.string(),
+                           image.cols, image.rows, size_.width, size_.height);
+      return {};
+    }
+    return image;
+  }
+
+ private:
+  static cv::Mat Decode(const fs::path& path, std::string* error) {
+    cv::Mat image;
+    try {
+      image = cv::imread(path.string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+    } catch (const cv::Exception& e) {
+      *error = fmt::format("{}: {}", path.string(), e.what());
+      return {};
+    }
+    if (image.empty()) {
+      *error = fmt::format("{} cannot be decoded", path.string());
+      return {};
+    }
+    if (image.depth() != CV_8U && image.depth() != CV_16U) {
+      *error = fmt::format("{} is neither 8 nor 16 bit", path.string());
+      return {};
+    }
+    return ToGrey(image);
+  }
+
+  fs::path dir_;
+  std::map<int, fs::path> files_;
+  cv::Size size_;
+};
+
+// A video through FFmpeg. Frames are numbered by their timestamps, so a
+// frame FFmpeg cannot decode, and skips, leaves a gap instead of shifting
+// every later frame.
+class VideoSource : public CameraSource {
+ public:
+  explicit VideoSource(const fs::path& path) : path_(path) {
+    if (!capture_.open(path.string(), cv::CAP_FFMPEG) || !capture_.isOpened()) {
+      ThrowInputError(path, 0, "cannot open as a video (FFmpeg)");
+    }
+    // Keep 16-bit sources 16-bit and grey sources grey where the backend
+    // allows it.
+    capture_.set(cv::CAP_PROP_CONVERT_RGB, 0);
+    const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
+    const double fps = capture_.get(cv::CAP_PROP_FPS);
+    fps_ = std::isfinite(fps) && fps > 0 && fps < 10000 ? fps : 0;
+    declared_frames_ = std::isfinite(count) && count > 0 ? static_cast<int>(std::lround(count)) : 0;
+    if (!Advance()) ThrowInputError(path, 0, "no frame of the video decodes");
+    size_ = pending_.size();
+    first_ = pending_frame_;
+  }
+  cv::Size size() const override { return size_; }
+  int first() const override { return first_; }
+  int last() const override {
+    return std::max(declared_frames_ > 0 ? declared_frames_ : INT_MAX - 1, pending_frame_);
+  }
+  cv::Mat Read(int frame, std::string* error) override {
+    while (!ended_ && pending_frame_ < frame) Advance();
+    if (!ended_ && pending_frame_ == frame) {
+      cv::Mat out = pending_;
+      Advance();
+      if (out.size() != size_) {
+        *error = fmt::format("decoded size {}x{} differs from the video's {}x{}", out.cols,
+                             out.rows, size_.width, size_.height);
+        return {};
+      }
+      return out;
+    }
+    *error = "the frame does not decode";
+    return {};
+  }
+  bool EndedBefore(int frame) const override {
+    return frame > last() || (ended_ && frame > last_decoded_);
+  }
+  std::vector<std::string> warnings() const override {
+    std::vector<std::string> out;
+    if (ended_ && declared_frames_ > 0 && last_decoded_ < declared_frames_) {
+      out.push_back(fmt::format("{}: declares {} frames, frames after {} do not decode "
+                                "(truncated?)",
+                                path_.string(), declared_frames_, last_decoded_));
+    }
+    return out;
+  }
+
+ private:
+  // Decodes the next frame into pending_; false (ended_) at the end.
+  bool Advance() {
+    cv::Mat raw;
+    bool got = false;
+    try {
+      got = capture_.read(raw);
+    } catch (const cv::Exception& e) {
+      spdlog::warn("{}: {}", path_.string(), e.what());
+    }
+    if (!got || raw.empty()) {
+      ended_ = true;
+      pending_.release();
+      return false;
+    }
+    // The decoded picture's timestamp (ms from the stream's start, from its
+    // pts) names the frame; OpenCV's CAP_PROP_POS_FRAMES only counts reads.
+    const double ms = capture_.get(cv::CAP_PROP_POS_MSEC);
+    int number = last_decoded_ + 1;
+    if (fps_ > 0 && std::isfinite(ms) && ms >= 0 && (ms > 0 || last_decoded_ == 0)) {
+      number = static_cast<int>(std::lround(ms * fps_ / 1000.0)) + 1;
+    }
+    if (number <= last_decoded_) number = last_decoded_ + 1;  // never go back
+    if (raw.depth() != CV_8U && raw.depth() != CV_16U) raw.convertTo(raw, CV_8U);
+    pending_ = ToGrey(raw);
+    pending_frame_ = number;
+    last_decoded_ = number;
+    return true;
+  }
+
+  fs::path path_;
+  cv::VideoCapture capture_;
+  cv::Size size_;
+  cv::Mat pending_;
+  int pending_frame_ = 0;
+  int first_ = 1;
+  int last_decoded_ = 0;
+  int declared_frames_ = 0;
+  double fps_ = 0;  // frames per second, 0 if unknown (then frames are counted)
+  bool ended_ = false;
+};
+
+// The source of camera `name`: the explicit path, else SHOT/<name>.<video
+// ext> or SHOT/<name>/.
+fs::path FindSource(const fs::path& shot, const std::string& name,
+                    const std::string& override_path) {
+  std::error_code ec;
+  if (!override_path.empty()) {
+    const fs::path p(override_path);
+    if (!fs::exists(p, ec)) ThrowInputError(p, 0, "the footage of {} does not exist", name);
+    return p;
+  }
+  if (!fs::is_directory(shot, ec)) {
+    ThrowInputError(shot, 0, "the shot folder does not exist or is not a folder");
+  }
+  std::vector<fs::path> found;
+  if (fs::is_directory(shot / name, ec)) found.push_back(shot / name);
+  for (fs::directory_iterator it(shot, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().stem() == name && IsVideoFile(it->path()) &&
+        it->path().filename().string().front() != '.') {
+      found.push_back(it->path());
+    }
+  }
+  if (found.empty()) {
+    ThrowInputError(shot, 0,
+                    "no footage for camera {}: expected a video {}.mkv/.mov/.mp4/.avi or a "
+                    "folder {}/ of numbered images (or pass --{})",
+                    name, name, name, name);
+  }
+  if (found.size() > 1) {
+    std::string list;
+    for (const fs::path& p : found) list += " " + p.filename().string();
+    ThrowInputError(shot, 0, "camera {} has more than one source:{} (pass --{} to choose)",
+                    name, list, name);
+  }
+  return found[0];
+}
+
+std::unique_ptr<CameraSource> OpenSource(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec) ThrowInputError(path, 0, "cannot read: {}", ec.message());
+  if (fs::is_directory(status)) return std::make_unique<ImageFolderSource>(path);
+  if (!fs::is_regular_file(status)) {
+    ThrowInputError(path, 0, "not a video file or an image folder");
+  }
+  if (!IsVideoFile(path)) {
+    ThrowInputError(path, 0, "not a video (.mkv .mov .mp4 .avi .mxf .webm) or an image folder");
+  }
+  return std::make_unique<VideoSource>(path);
+}
+
+}  // namespace
+
+struct FootageReader::Impl {
+  std::vector<std::string> names;
+  std::vector<fs::path> paths;
+  std::vector<std::unique_ptr<CameraSource>> sources;
+  std::vector<int> offsets;  // camera frame = cam0 frame + offset
+  std::vector<std::string> warnings;
+  int first = 1;
+  int last = 0;
+  int next = 1;
+  bool source_warnings_added = false;
+};
+
+FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string>& camera_names,
+                             const FootageOptions& options,
+                             const std::vector<cv::Size>& expected_sizes)
+    : impl_(std::make_unique<Impl>()) {
+  if (camera_names.empty()) throw InputError("footage: no cameras to read");
+  const FrameRange range = ParseFrameRange(options.frames, "--frames");
+  impl_->names = camera_names;
+  for (size_t c = 0; c < camera_names.size(); ++c) {
+    const std::string& name = camera_names[c];
+    const std::string override_path =
+        c == 0 ? options.cam0 : c == 1 ? options.cam1 : std::string();
+    impl_->paths.push_back(FindSource(shot, name, override_path));
+    impl_->sources.push_back(OpenSource(impl_->paths.back()));
+    impl_->offsets.push_back(c == 1 ? options.offset1 : 0);
+    const cv::Size size = impl_->sources.back()->size();
+    if (c < expected_sizes.size() && expected_sizes[c] != size) {
+      ThrowInputError(impl_->paths.back(), 0,
+                      "image size {}x{} does not match the calibration's {}x{} for {}",
+                      size.width, size.height, expected_sizes[c].width,
+                      expected_sizes[c].height, name);
+    }
+  }
+  // The common range, in cam0's numbering.
+  int first = INT_MIN;
+  int last = INT_MAX;
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    first = std::max(first, impl_->sources[c]->first() - impl_->offsets[c]);
+    last = std::min(last, impl_->sources[c]->last() - impl_->offsets[c]);
+  }
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    const int own_first = impl_->sources[c]->first() - impl_->offsets[c];
+    const int own_last = impl_->sources[c]->last() - impl_->offsets[c];
+    if (own_first != first || own_last != last) {
+      impl_->warnings.push_back(fmt::format(
+          "{} ({}) covers frames {}..{}, the cameras in common {}..{}: reading the common range",
+          camera_names[c], impl_->paths[c].string(), own_first, own_last, first, last));
+    }
+  }
+  first = std::max(first, range.first);
+  last = std::min(last, range.last);
+  if (first > last) {
+    ThrowInputError(shot, 0, "no frame in common between the cameras and --frames '{}'",
+                    options.frames);
+  }
+  impl_->first = first;
+  impl_->last = last;
+  impl_->next = first;
+  for (const std::string& w : impl_->warnings) spdlog::warn("footage: {}", w);
+}
+
+FootageReader::~FootageReader() = default;
+
+int FootageReader::num_cameras() const { return static_cast<int>(impl_->names.size()); }
+const std::string& FootageReader::camera_name(int camera) const { return impl_->names[camera]; }
+const fs::path& FootageReader::source(int camera) const { return impl_->paths[camera]; }
+cv::Size FootageReader::image_size(int camera) const { return impl_->sources[camera]->size(); }
+int FootageReader::first_frame() const { return impl_->first; }
+int FootageReader::last_frame() const { return impl_->last; }
+const std::vector<std::string>& FootageReader::warnings() const { return impl_->warnings; }
+
+bool FootageReader::Next(FootageFrame* frame) {
+  Impl& d = *impl_;
+  if (d.next > d.last) {
+    if (!d.source_warnings_added) {
+      d.source_warnings_added = true;
+      for (const auto& source : d.sources) {
+        for (const std::string& w : source->warnings()) {
+          spdlog::warn("footage: {}", w);
+          d.warnings.push_back(w);
+        }
+      }
+    }
+    return false;
+  }
+  const int f = d.next;
+  for (size_t c = 0; c < d.sources.size(); ++c) {
+    if (d.sources[c]->EndedBefore(f + d.offsets[c])) {
+      d.last = f - 1;  // a video ended early: what decoded is the shot
+      return Next(frame);
+    }
+  }
+  ++d.next;
+  frame->frame = f;
+  frame->images.assign(d.sources.size(), cv::Mat());
+  frame->errors.assign(d.sources.size(), std::string());
+  for (size_t c = 0; c < d.sources.size(); ++c) {
+    std::string error;
+    frame->images[c] = d.sources[c]->Read(f + d.offsets[c], &error);
+    if (frame->images[c].empty()) {
+      frame->errors[c] = error.empty() ? "no image" : error;
+      const std::string w = fmt::format("frame {} {}: {}", f, d.names[c], frame->errors[c]);
+      spdlog::warn("footage: {}", w);
+      d.warnings.push_back(w);
+    }
+  }
+  return true;
+}
+
+cv::Mat ToGrey8(const cv::Mat& image) {
+  if (image.depth() == CV_8U) return image;
+  cv::Mat out;
+  image.convertTo(out, CV_8U, 1.0 / 257.0);
+  return out;
+}
+
+cv::Mat ToGreyFloat(const cv::Mat& image) {
+  cv::Mat out;
+  image.convertTo(out, CV_32F, image.depth() == CV_16U ? 1.0 / 65535.0 : 1.0 / 255.0);
+  return out;
+}
+
+}  // namespace hmc

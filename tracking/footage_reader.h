@@ -1,0 +1,107 @@
+// Reading a shot's footage, frame by frame, for every command that looks at
+// pixels (hmc track, hmc undistort, hmc calibrate, hmc run). Format and
+// rules: docs/formats.md, "Footage input".
+//
+// A shot folder holds, per camera (named as in calibration.yaml, "cam0",
+// "cam1"), either a video `<name>.<ext>` (anything FFmpeg decodes through
+// cv::VideoCapture with cv::CAP_FFMPEG: FFV1 .mkv, ProRes .mov, H.264 .mp4,
+// .avi) or a folder `<name>/` of numbered images (PNG, TIFF, JPEG; 8 or 16
+// bit, grey or colour). `FootageOptions::cam0` / `cam1` override the
+// convention with an explicit path.
+//
+// Frame numbers start at 1: a video's n-th frame (by its timestamp) is frame
+// n; an image sequence's frame is its file number minus the first file
+// number plus 1, so sequences numbered from 0 or from 1 read the same and a
+// missing file is a missing frame. cam1's frame f + offset1 pairs with
+// cam0's frame f; frames are reported in cam0's numbering.
+//
+// Frames stream: only the current frame is held, so memory does not grow
+// with the length of the shot. A frame that fails to decode in one camera
+// is delivered with that camera's image empty and the reason set (the other
+// camera's image is still there); the frames after it are read normally.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/options.h"
+
+namespace hmc {
+
+struct FootageOptions {
+  std::string cam0;     // cam0 video or image folder ("" = SHOT/cam0.<ext> or SHOT/cam0/)
+  std::string cam1;     // cam1 video or image folder ("" = SHOT/cam1.<ext> or SHOT/cam1/)
+  std::string frames;   // inclusive range "A:B" of frame numbers; "A:" or ":B" open ("" = all)
+  int offset1 = 0;      // cam1 frame number = cam0 frame number + offset1 (frames)
+
+  // Adds the fields without a group ("cam0", "frames", "offset1", ...).
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+// The parsed `frames` range; first/last are inclusive (INT_MIN/INT_MAX when
+// open). Throws InputError naming `origin` on a malformed range.
+struct FrameRange {
+  int first;
+  int last;
+  bool Contains(int frame) const { return frame >= first && frame <= last; }
+};
+FrameRange ParseFrameRange(const std::string& text, const std::string& origin);
+
+struct FootageFrame {
+  int frame = 0;                     // frame number (cam0's numbering)
+  std::vector<cv::Mat> images;       // per camera: grey, CV_8U or CV_16U as stored; empty if missing
+  std::vector<std::string> errors;   // per camera: why the image is missing ("" if present)
+
+  bool complete() const;             // every camera's image present
+};
+
+class FootageReader {
+ public:
+  // Opens every camera's source under `shot` (or the override in
+  // `options`). Throws InputError naming the path when a source is missing,
+  // unreadable, not a video or image folder, empty, or its image size
+  // differs from `expected_sizes[c]` (when given; e.g. from the
+  // calibration). Warns (warnings()) when the cameras' frame ranges differ:
+  // the common range is read.
+  FootageReader(const std::filesystem::path& shot,
+                const std::vector<std::string>& camera_names,
+                const FootageOptions& options,
+                const std::vector<cv::Size>& expected_sizes = {});
+  ~FootageReader();
+  FootageReader(const FootageReader&) = delete;
+  FootageReader& operator=(const FootageReader&) = delete;
+
+  int num_cameras() const;
+  const std::string& camera_name(int camera) const;
+  const std::filesystem::path& source(int camera) const;
+  cv::Size image_size(int camera) const;
+  // The frames that will be read (cam0 numbering, after the range and the
+  // offset); frames in between may still fail to decode.
+  int first_frame() const;
+  int last_frame() const;
+  int num_frames() const { return last_frame() - first_frame() + 1; }
+
+  // Reads the next frame in order; false after the last one. Never throws
+  // for a bad frame: the frame comes back with the camera's error set.
+  bool Next(FootageFrame* frame);
+
+  // Shot-level warnings (different lengths, a truncated video, ...), and
+  // per-frame decode failures ("frame 17 cam1: ...") as they happen.
+  const std::vector<std::string>& warnings() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// 8-bit view of a grey image from the reader (16-bit scaled by 1/257).
+cv::Mat ToGrey8(const cv::Mat& image);
+// Float view in [0, 1] (8-bit / 255, 16-bit / 65535).
+cv::Mat ToGreyFloat(const cv::Mat& image);
+
+}  // namespace hmc
