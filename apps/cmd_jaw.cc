@@ -1,5 +1,5 @@
 // `hmc jaw --bundles bundles.csv --actor DIR --out jaw.csv
-//   [--config configs/jaw.yaml]`: the jaw pose per frame from head-space
+//   [--config configs/jaw.yaml] [--truth FILE]`: the jaw pose per frame from head-space
 // bundles with the actor's jaw rig (stabilization/jaw_fit.h). Writes
 // jaw.csv and, beside it, jaw_options_used.yaml and jaw_summary.json
 // (docs/formats.md; method: docs/stabilization.md).

@@ -1,5 +1,5 @@
 // `hmc stabilize --bundles bundles_helmet.csv --actor DIR --out DIR
-//   [--config configs/stabilize.yaml]`: the rigid head pose per frame and
+//   [--config configs/stabilize.yaml] [--truth FILE]`: the rigid head pose per frame and
 // the bundles in head space (stabilization/stabilize.h). Writes to DIR
 // head_from_helmet.csv, bundles.csv, residuals.csv, options_used.yaml and
 // summary.json (docs/formats.md; method: docs/stabilization.md).

@@ -178,37 +178,29 @@ void WriteJawCsv(const std::filesystem::path& path,
 
 std::vector<PoseFrame> ReadPosesCsv(const std::filesystem::path& path) {
   std::map<int, std::pair<PoseFrame, int>> frames;  // frame -> (pose, line)
-  const std::vector<std::string>& header = PosesHeader();
-  ForEachCsvRow(
-      path, header, [&](const std::vector<std::string_view>& fields, int line) {
-        PoseFrame pose;
-        pose.frame = ParseInt(fields[0], path, line, "frame");
-        Mat3 rotation;
-        Vec3 translation;
-        for (int i = 0; i < 9; ++i) {
-          rotation(i / 3, i % 3) =
-              ParseFinite(fields[1 + i], path, line, header[1 + i].c_str());
-        }
-        for (int i = 0; i < 3; ++i) {
-          translation[i] =
-              ParseFinite(fields[10 + i], path, line, header[10 + i].c_str());
-        }
-        const double orthogonality =
-            (rotation.transpose() * rotation - Mat3::Identity()).norm();
-        if (orthogonality > 1e-6 || rotation.determinant() < 0) {
-          ThrowInputError(path, line,
-                          "not a rotation: |R^T R - I| = {:.3g}, det R = {:.6f}",
-                          orthogonality, rotation.determinant());
-        }
-        pose.pose.linear() = rotation;
-        pose.pose.translation() = translation;
-        const auto [it, inserted] =
-            frames.emplace(pose.frame, std::make_pair(pose, line));
-        if (!inserted) {
-          ThrowInputError(path, line, "frame {} repeated (first on line {})",
-                          pose.frame, it->second.second);
-        }
-      });
+  ForEachCsvRow(path, PosesHeader(), [&](const CsvRow& row) {
+    const int line = row.line();
+    PoseFrame pose;
+    pose.frame = row.Int(0);
+    Mat3 rotation;
+    for (int i = 0; i < 9; ++i) rotation(i / 3, i % 3) = row.Finite(1 + i);
+    const Vec3 translation(row.Finite(10), row.Finite(11), row.Finite(12));
+    const double orthogonality =
+        (rotation.transpose() * rotation - Mat3::Identity()).norm();
+    if (orthogonality > 1e-6 || rotation.determinant() < 0) {
+      ThrowInputError(path, line,
+                      "not a rotation: |R^T R - I| = {:.3g}, det R = {:.6f}",
+                      orthogonality, rotation.determinant());
+    }
+    pose.pose.linear() = rotation;
+    pose.pose.translation() = translation;
+    const auto [it, inserted] =
+        frames.emplace(pose.frame, std::make_pair(pose, line));
+    if (!inserted) {
+      ThrowInputError(path, line, "frame {} repeated (first on line {})",
+                      pose.frame, it->second.second);
+    }
+  });
   std::vector<PoseFrame> result;
   result.reserve(frames.size());
   for (const auto& [frame, pose_and_line] : frames) {

@@ -19,7 +19,14 @@
 //    fitted to all markers' residuals T a_k - q_k = B_k c by ridge least
 //    squares (B_k the 3 x N skinned shape displacements at marker k),
 //    alternating with the rigid fit, so a brow raise or a squint is
-//    explained by the shapes and does not tilt the head.
+//    explained by the shapes and does not tilt the head. A marker more than
+//    3 loss scales off the expression's fit is left out of the next shape
+//    fit (a bad track would pull the shape weights).
+//  - Shot weights (`shot_weights: true`): a second pass whose prior weights
+//    are w0_k = 1 / (v_k + v_floor), v_k marker k's median squared residual
+//    over the first pass's frames and v_floor the median v_k of the markers
+//    the dataset trusts (w0 >= 0.5): with the expression explained, the
+//    whole face carries information about the head.
 //  - A frame with fewer than min_markers usable markers (present, with a
 //    prior weight of at least min_weight) or with collinear ones is flagged
 //    and its pose interpolated from the nearest good frames (rotation by
