@@ -85,7 +85,7 @@ class FrameJawFitter {
   FrameJawFitter(const MarkerModel& model, const std::vector<int>& jaw_markers,
                  const JawOptions& options, const Pose& lower, const Pose& upper)
       : model_(model), options_(options), lower_(lower), upper_(upper),
-        jaw_markers_(jaw_markers), in_jaw_(model.num_markers, 0) {
+        in_jaw_(model.num_markers, 0) {
     for (int k : jaw_markers) in_jaw_[k] = 1;
     const Eigen::MatrixXd& b = model.unskinned_displacement;
     normal_ = b.transpose() * b;
@@ -255,22 +255,15 @@ class FrameJawFitter {
 
   // The factor with the missing markers' terms taken out.
   Eigen::LLT<Eigen::MatrixXd> PartialFactor(const std::vector<int>& ks) const {
-    const Eigen::MatrixXd& b = model_.unskinned_displacement;
     std::vector<char> present(model_.num_markers, 0);
     for (int k : ks) present[k] = 1;
-    Eigen::MatrixXd normal = normal_;
-    for (int k = 0; k < model_.num_markers; ++k) {
-      if (present[k]) continue;
-      const auto bk = b.middleRows<3>(3 * k);
-      normal.noalias() -= bk.transpose() * bk;
-    }
-    return Eigen::LLT<Eigen::MatrixXd>(normal);
+    return Eigen::LLT<Eigen::MatrixXd>(
+        NormalWithout(normal_, model_.unskinned_displacement, present));
   }
 
   const MarkerModel& model_;
   const JawOptions& options_;
   Pose lower_, upper_;
-  std::vector<int> jaw_markers_;
   std::vector<char> in_jaw_;
   Eigen::MatrixXd normal_;
   Eigen::MatrixXd full_projection_;  // P over all markers

@@ -76,4 +76,15 @@ MarkerModel ComputeMarkerModel(const Actor& actor) {
   return model;
 }
 
+Eigen::MatrixXd NormalWithout(const Eigen::MatrixXd& normal, const Eigen::MatrixXd& b,
+                              const std::vector<char>& used) {
+  Eigen::MatrixXd out = normal;
+  for (size_t k = 0; k < used.size(); ++k) {
+    if (used[k]) continue;
+    const auto bk = b.middleRows<3>(3 * k);
+    out.noalias() -= bk.transpose() * bk;
+  }
+  return out;
+}
+
 }  // namespace hmc

@@ -14,11 +14,10 @@
 // (x0_i - x0(s_k)) the jaw moment over the triangle's corners i.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
-
-#include <optional>
 
 #include <Eigen/Core>
 
@@ -57,5 +56,11 @@ struct MarkerModel {
 
 // Parallel over shapes.
 MarkerModel ComputeMarkerModel(const Actor& actor);
+
+// The normal matrix `normal` (N x N, sum over all K markers of
+// B_k^T B_k plus a ridge) with the terms of the markers k where !used[k]
+// taken out; b: 3K x N, rows 3k..3k+2 = B_k.
+Eigen::MatrixXd NormalWithout(const Eigen::MatrixXd& normal, const Eigen::MatrixXd& b,
+                              const std::vector<char>& used);
 
 }  // namespace hmc

@@ -206,7 +206,7 @@ class FrameStabilizer {
       const double change =
           (next.target_from_source.matrix() - fit.target_from_source.matrix()).norm();
       fit = next;
-      if (change < 1e-12) break;
+      if (change < 1e-9) break;  // mm and rad: far below any accuracy asked
     }
     return fit;
   }
@@ -232,13 +232,7 @@ class FrameStabilizer {
     } else {
       // Missing or left-out markers: take their terms out of the normal
       // matrix.
-      Eigen::MatrixXd normal = normal_;
-      for (int k = 0; k < model_.num_markers; ++k) {
-        if (used[k]) continue;
-        const auto bk = b.middleRows<3>(3 * k);
-        normal.noalias() -= bk.transpose() * bk;
-      }
-      c = normal.llt().solve(rhs);
+      c = NormalWithout(normal_, b, used).llt().solve(rhs);
     }
     Eigen::Matrix3Xd offsets(3, n);
     for (int i = 0; i < n; ++i) offsets.col(i) = b.middleRows<3>(3 * ks[i]) * c;
