@@ -54,6 +54,13 @@ std::vector<std::string> JawHeader() {
   return header;
 }
 
+const std::vector<std::string>& PosesHeader() {
+  static const std::vector<std::string> header = {
+      "frame", "r00", "r01", "r02", "r10", "r11", "r12",
+      "r20",   "r21", "r22", "tx",  "ty",  "tz"};
+  return header;
+}
+
 }  // namespace
 
 std::vector<BundleFrame> ReadBundlesCsv(const std::filesystem::path& path) {
@@ -165,6 +172,61 @@ void WriteJawCsv(const std::filesystem::path& path,
       const std::array<double, 3> values = frame.pose.ToArray();
       out << frame.frame << ',' << Exact(values[0]) << ',' << Exact(values[1])
           << ',' << Exact(values[2]) << '\n';
+    }
+  });
+}
+
+std::vector<PoseFrame> ReadPosesCsv(const std::filesystem::path& path) {
+  std::map<int, std::pair<PoseFrame, int>> frames;  // frame -> (pose, line)
+  ForEachCsvRow(path, PosesHeader(), [&](const CsvRow& row) {
+    const int line = row.line();
+    PoseFrame pose;
+    pose.frame = row.Int(0);
+    Mat3 rotation;
+    for (int i = 0; i < 9; ++i) rotation(i / 3, i % 3) = row.Finite(1 + i);
+    const Vec3 translation(row.Finite(10), row.Finite(11), row.Finite(12));
+    const double orthogonality =
+        (rotation.transpose() * rotation - Mat3::Identity()).norm();
+    if (orthogonality > 1e-6 || rotation.determinant() < 0) {
+      ThrowInputError(path, line,
+                      "not a rotation: |R^T R - I| = {:.3g}, det R = {:.6f}",
+                      orthogonality, rotation.determinant());
+    }
+    pose.pose.linear() = rotation;
+    pose.pose.translation() = translation;
+    const auto [it, inserted] =
+        frames.emplace(pose.frame, std::make_pair(pose, line));
+    if (!inserted) {
+      ThrowInputError(path, line, "frame {} repeated (first on line {})",
+                      pose.frame, it->second.second);
+    }
+  });
+  std::vector<PoseFrame> result;
+  result.reserve(frames.size());
+  for (const auto& [frame, pose_and_line] : frames) {
+    result.push_back(pose_and_line.first);
+  }
+  return result;
+}
+
+void WritePosesCsv(const std::filesystem::path& path,
+                   const std::vector<PoseFrame>& frames) {
+  RequireDistinctFrames(path, frames);
+  for (const PoseFrame& frame : frames) {
+    if (!frame.pose.matrix().allFinite()) {
+      ThrowInputError(path, 0, "cannot write the pose of frame {}: not finite",
+                      frame.frame);
+    }
+  }
+  WriteFileAtomic(path, [&](std::ostream& out) {
+    out << fmt::format("{}\n", fmt::join(PosesHeader(), ","));
+    for (const PoseFrame& frame : frames) {
+      const Mat3 r = frame.pose.linear();
+      const Vec3 t = frame.pose.translation();
+      out << frame.frame;
+      for (int i = 0; i < 9; ++i) out << ',' << Exact(r(i / 3, i % 3));
+      for (int i = 0; i < 3; ++i) out << ',' << Exact(t[i]);
+      out << '\n';
     }
   });
 }

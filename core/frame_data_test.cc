@@ -105,6 +105,28 @@ TEST_P(FrameDataSeeded, JawRoundTripsExactly) {
   }
 }
 
+TEST_P(FrameDataSeeded, PosesRoundTripExactly) {
+  const fs::path dir = FreshDir("poses_" + std::to_string(GetParam()));
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> normal;
+  std::vector<PoseFrame> frames(6);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    frames[i].frame = static_cast<int>(GetParam()) + 3 * static_cast<int>(i);
+    const Vec3 axis = Vec3(normal(rng), normal(rng), normal(rng)).normalized();
+    frames[i].pose.linear() =
+        Eigen::AngleAxisd(normal(rng), axis).toRotationMatrix();
+    frames[i].pose.translation() =
+        Vec3(RandomValue(rng), RandomValue(rng), RandomValue(rng));
+  }
+  WritePosesCsv(dir / "head_from_helmet.csv", frames);
+  const std::vector<PoseFrame> back = ReadPosesCsv(dir / "head_from_helmet.csv");
+  ASSERT_EQ(back.size(), frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_EQ(back[i].frame, frames[i].frame);
+    EXPECT_TRUE(back[i].pose.matrix() == frames[i].pose.matrix());
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Seeds, FrameDataSeeded,
                          ::testing::Values(1u, 2u, 5u, 23u));
 
@@ -182,6 +204,24 @@ TEST(FrameDataTest, BadJawIsRefusedWithFileAndLine) {
   WriteFileAtomic(file, header + "3,0,0,0\n1,0,0,0\n3,1,1,1\n");
   ExpectErrorAtLine(file, 4, [&] { ReadJawCsv(file); },
                     "frame 3 repeated (first on line 2)");
+}
+
+TEST(FrameDataTest, BadPosesAreRefusedWithFileAndLine) {
+  const fs::path dir = FreshDir("bad_poses");
+  const fs::path file = dir / "head_from_helmet.csv";
+  const std::string header =
+      "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
+  WriteFileAtomic(file, header + "1,1,0,0,0,1,0,0,0,1,0,0,0\n"
+                                 "2,1,0,0,0,1,0,0,0,2,0,0,0\n");
+  ExpectErrorAtLine(file, 3, [&] { ReadPosesCsv(file); }, "not a rotation");
+  WriteFileAtomic(file, header + "1,1,0,0,0,1,0,0,0,-1,0,0,0\n");
+  ExpectErrorAtLine(file, 2, [&] { ReadPosesCsv(file); }, "not a rotation");
+  WriteFileAtomic(file, header + "4,1,0,0,0,1,0,0,0,1,0,0,0\n"
+                                 "4,1,0,0,0,1,0,0,0,1,0,0,0\n");
+  ExpectErrorAtLine(file, 3, [&] { ReadPosesCsv(file); },
+                    "frame 4 repeated (first on line 2)");
+  WriteFileAtomic(file, header + "1,1,0,0,0,1,0,0,0,1,0,0\n");
+  ExpectErrorAtLine(file, 2, [&] { ReadPosesCsv(file); }, "fields");
 }
 
 TEST(FrameDataTest, WritersRefuseWhatCannotBeReadBack) {

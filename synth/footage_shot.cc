@@ -29,7 +29,12 @@ namespace hmc {
 
 void SynthShotOptions::Register(OptionFields* fields) {
   performance.Register(fields);
-  fields->Add("video", &video, "ffv1 (lossless .mkv per camera) | png (a folder per camera)");
+  fields->Add("video", &video,
+              "ffv1 (lossless .mkv per camera) | png (a folder per camera) | none (ground truth "
+              "only: no images, dots_2d.csv or contact sheet)");
+  fields->Add("bundle_noise_mm", &bundle_noise_mm,
+              "> 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per "
+              "coordinate (mm)");
   fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)");
   fields->Add("contact_dots", &contact_dots, "overlay the ground-truth dots on the contact sheet");
   fields->Add("contact_scale", &contact_scale, "contact sheet image scale");
@@ -51,8 +56,12 @@ void SynthShotOptions::Register(OptionFields* fields) {
 
 bool SynthShotOptions::Check() const {
   bool ok = performance.Check() && rig.Check() && render.Check();
-  if (video != "ffv1" && video != "png") {
-    spdlog::error("synth shot options: video must be ffv1 or png, got '{}'", video);
+  if (video != "ffv1" && video != "png" && video != "none") {
+    spdlog::error("synth shot options: video must be ffv1, png or none, got '{}'", video);
+    ok = false;
+  }
+  if (!(bundle_noise_mm >= 0 && bundle_noise_mm <= 50)) {
+    spdlog::error("synth shot options: bundle_noise_mm must be in [0, 50]");
     ok = false;
   }
   if (!(nominal_mm >= 0 && nominal_mm <= 50 && nominal_deg >= 0 && nominal_deg <= 20 &&
@@ -99,15 +108,6 @@ double FaceFrontZ(const TriMesh& neutral, double y) {
   }
   if (!std::isfinite(best)) best = neutral.V.col(2).maxCoeff();
   return best;
-}
-
-std::string Rigid3Row(const Rigid3& t) {
-  const Eigen::Matrix<double, 3, 4> m = t.matrix().topRows<3>();
-  std::string out;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out += fmt::format("{:.12g},", m(r, c));
-  }
-  return out + fmt::format("{:.9g},{:.9g},{:.9g}", m(0, 3), m(1, 3), m(2, 3));
 }
 
 // Writes one camera's frames: a lossless FFV1 .mkv (written under a
@@ -236,6 +236,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
   const int num_cameras = renderer.NumCameras();
+  const bool render = options.video != "none";
   const bool perturbed =
       options.nominal_mm > 0 || options.nominal_deg > 0 || options.nominal_focal_pct > 0;
   if (perturbed) {
@@ -275,12 +276,12 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
 
   std::vector<FrameSink> sinks;
   sinks.reserve(num_cameras);
-  for (const HelmetCamera& hc : rig.cameras) {
+  for (const HelmetCamera& hc : render ? rig.cameras : std::vector<HelmetCamera>()) {
     sinks.emplace_back(out_dir, hc.name, options.video, perf.fps,
                        cv::Size(hc.camera.width, hc.camera.height));
   }
   std::set<int> contact;
-  for (int i = 0; i < options.contact_frames; ++i) {
+  for (int i = 0; render && i < options.contact_frames; ++i) {
     contact.insert(static_cast<int>((i + 0.5) * num_frames / options.contact_frames));
   }
   std::vector<cv::Mat> contact_rows;
@@ -291,8 +292,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
   std::vector<JawFrame> jaw(num_frames);
   std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy\n";
-  std::string pose_csv =
-      "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
+  std::vector<PoseFrame> poses(num_frames);
   SynthShotSummary summary;
   summary.frames = num_frames;
   summary.cameras = num_cameras;
@@ -320,7 +320,9 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     // Motion blur: sub-frame states across the shutter, centred on the frame.
     std::vector<MatX3d> blur_positions;
     std::vector<SceneState> samples;
-    if (blur > 1) {
+    if (!render) {
+      // Ground truth only: nothing to sample.
+    } else if (blur > 1) {
       blur_positions.reserve(blur);
       for (int j = 0; j < blur; ++j) {
         const double tau = (j / (blur - 1.0) - 0.5) * options.render.shutter;  // frames
@@ -342,10 +344,10 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
       bundles_head[f].bundles[marker.name] = p;
       bundles_helmet[f].bundles[marker.name] = helmet_from_head * p;
     }
-    pose_csv += fmt::format("{},{}\n", frame, Rigid3Row(head_from_helmet));
+    poses[f] = {frame, head_from_helmet};
     std::vector<cv::Mat> panels;
-    std::vector<cv::Mat> images(num_cameras);
-    for (int c = 0; c < num_cameras; ++c) {
+    std::vector<cv::Mat> images(render ? num_cameras : 0);
+    for (int c = 0; c < static_cast<int>(images.size()); ++c) {
       const auto render_start = std::chrono::steady_clock::now();
       const uint64_t key = (static_cast<uint64_t>(perf.seed) << 32) ^
                            (static_cast<uint64_t>(frame) << 4) ^ static_cast<uint64_t>(c);
@@ -391,10 +393,19 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   for (FrameSink& sink : sinks) sink.Finish();
 
   // Ground truth.
-  WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
-  WriteFileAtomic(out_dir / "head_from_helmet.csv", pose_csv);
+  if (render) WriteFileAtomic(out_dir / "dots_2d.csv", dots_csv);
+  WritePosesCsv(out_dir / "head_from_helmet.csv", poses);
   WriteBundlesCsv(out_dir / "bundles.csv", bundles_head);
   WriteBundlesCsv(out_dir / "bundles_helmet.csv", bundles_helmet);
+  if (options.bundle_noise_mm > 0) {
+    SynthRandom noise = SynthRandom::Stream(static_cast<uint64_t>(perf.seed), 51);
+    for (BundleFrame& frame : bundles_helmet) {
+      for (auto& [name, p] : frame.bundles) {
+        for (int i = 0; i < 3; ++i) p[i] += options.bundle_noise_mm * noise.Normal();
+      }
+    }
+    WriteBundlesCsv(out_dir / "bundles_helmet_noisy.csv", bundles_helmet);
+  }
   WriteJawCsv(out_dir / "jaw.csv", jaw);
   WriteFileAtomic(out_dir / "tags_2d.csv", tags_csv);
   truth.topology = actor.neutral;

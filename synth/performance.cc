@@ -5,6 +5,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/error.h"
 #include "synth/synth_actor.h"
 #include "synth/synth_random.h"
 #include "synth/truth_frames.h"
@@ -24,6 +25,10 @@ void PerformanceOptions::Register(OptionFields* fields) {
               "head placed this far from rest for the whole shot, random direction (mm)");
   fields->Add("head_offset_deg", &head_offset_deg,
               "and turned this much about a random axis through the head origin (deg)");
+  fields->Add("brow_activity", &brow_activity,
+              "peak of added slow brow raises/lowerings (activation; 0 = none)");
+  fields->Add("jaw_activity", &jaw_activity,
+              "peak of added slow jaw opening, swing, thrust (activation; 0 = none)");
 }
 
 bool PerformanceOptions::Check() const {
@@ -41,6 +46,8 @@ bool PerformanceOptions::Check() const {
   if (!(vibration_hz > 0 && vibration_hz <= 500)) fail("vibration_hz must be in (0, 500]");
   if (!(head_offset_mm >= 0 && head_offset_mm <= 40)) fail("head_offset_mm must be in [0, 40]");
   if (!(head_offset_deg >= 0 && head_offset_deg <= 30)) fail("head_offset_deg must be in [0, 30]");
+  if (!(brow_activity >= 0 && brow_activity <= 1)) fail("brow_activity must be in [0, 1]");
+  if (!(jaw_activity >= 0 && jaw_activity <= 1)) fail("jaw_activity must be in [0, 1]");
   return ok;
 }
 
@@ -50,6 +57,50 @@ namespace {
 Vec3 RandomDirection(SynthRandom* rng) {
   Vec3 d(rng->Normal(), rng->Normal(), rng->Normal());
   return d.normalized();
+}
+
+// 0.5 - 0.5 cos: a smooth swell from 0 to 1 and back, once per period.
+double Swell(double t_s, double hz, double phase) {
+  return 0.5 - 0.5 * std::cos(2 * M_PI * hz * t_s + phase);
+}
+
+// Adds the slow brow and jaw tracks of brow_activity / jaw_activity (for
+// stabilization and jaw tests: large motion on markers near the stable ones
+// and on the jaw) to the performance's activations; clamped to [0, 1].
+void AddBrowAndJawActivity(const FaceModel& model, const PerformanceOptions& options,
+                           std::vector<Eigen::VectorXd>* activations) {
+  if (options.brow_activity == 0 && options.jaw_activity == 0) return;
+  SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(options.seed), 52);
+  const double brow_phase = rng.Uniform(0, 2 * M_PI);
+  const double jaw_phase = rng.Uniform(0, 2 * M_PI);
+  const double swing_phase = rng.Uniform(0, 2 * M_PI);
+  const double thrust_phase = rng.Uniform(0, 2 * M_PI);
+  auto unit = [&](const char* name) {
+    const int k = model.FindUnit(name);
+    HMC_CHECK(k >= 0);
+    return k;
+  };
+  const int inner_l = unit("AU01_inner_brow_raiser_L"), inner_r = unit("AU01_inner_brow_raiser_R");
+  const int outer_l = unit("AU02_outer_brow_raiser_L"), outer_r = unit("AU02_outer_brow_raiser_R");
+  const int lowerer = unit("AU04_brow_lowerer"), jaw_drop = unit("AU26_jaw_drop");
+  const int sideways_l = unit("AU30_jaw_sideways_L"), sideways_r = unit("AU30_jaw_sideways_R");
+  const int thrust = unit("AU29_jaw_thrust");
+  for (size_t f = 0; f < activations->size(); ++f) {
+    const double t = f / options.fps;
+    Eigen::VectorXd& a = (*activations)[f];
+    // Brows: raise (0.4 Hz) with a lowering between raises.
+    const double brow = std::sin(2 * M_PI * 0.4 * t + brow_phase);
+    const double raise = options.brow_activity * std::max(0.0, brow);
+    for (int k : {inner_l, inner_r, outer_l, outer_r}) a[k] += raise;
+    a[lowerer] += 0.6 * options.brow_activity * std::max(0.0, -brow);
+    // Jaw: opening (0.7 Hz), a swing to either side (0.3 Hz), thrust (0.23 Hz).
+    const double swing = std::sin(2 * M_PI * 0.3 * t + swing_phase);
+    a[jaw_drop] += options.jaw_activity * Swell(t, 0.7, jaw_phase);
+    a[sideways_l] += 0.6 * options.jaw_activity * std::max(0.0, swing);
+    a[sideways_r] += 0.6 * options.jaw_activity * std::max(0.0, -swing);
+    a[thrust] += 0.5 * options.jaw_activity * Swell(t, 0.23, thrust_phase);
+    a = a.cwiseMax(0.0).cwiseMin(1.0);
+  }
 }
 
 }  // namespace
@@ -120,6 +171,7 @@ ShotPerformance MakePerformance(const FaceModel& model,
   all_units.holdout = 0;
   all_units.holdout_units.clear();
   out.activations = TruthActivations(model, PlanDataset(model, all_units), truth);
+  AddBrowAndJawActivity(model, options, &out.activations);
   for (int f = 0; f < options.frames; ++f) {
     out.head_from_helmet.push_back(HeadFromHelmetAt(options, f / options.fps));
   }

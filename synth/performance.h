@@ -29,6 +29,8 @@ struct PerformanceOptions {
   double vibration_hz = 11;     // main vibration frequency (Hz)
   double head_offset_mm = 0;    // head placed this far from rest for the whole shot, random direction (mm)
   double head_offset_deg = 0;   // and turned this much about a random axis through the head origin (deg)
+  double brow_activity = 0;     // peak of added slow brow raises/lowerings (activation; 0 = none)
+  double jaw_activity = 0;      // peak of added slow jaw opening, swing, thrust (activation; 0 = none)
 
   void Register(OptionFields* fields);
   bool Check() const;

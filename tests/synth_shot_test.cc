@@ -112,21 +112,8 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   const std::vector<BundleFrame> head = ReadBundlesCsv(a / "bundles.csv");
   ASSERT_EQ(helmet.size(), 5u);
   std::map<int, Rigid3> head_from_helmet;
-  {
-    std::istringstream in(ReadFile(a / "head_from_helmet.csv"));
-    std::string line;
-    std::getline(in, line);
-    while (std::getline(in, line)) {
-      std::istringstream row(line);
-      std::string cell;
-      std::vector<double> v;
-      while (std::getline(row, cell, ',')) v.push_back(std::stod(cell));
-      ASSERT_EQ(v.size(), 13u);
-      Rigid3 t = Rigid3::Identity();
-      t.linear() << v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9];
-      t.translation() << v[10], v[11], v[12];
-      head_from_helmet[static_cast<int>(v[0])] = t;
-    }
+  for (const PoseFrame& pose : ReadPosesCsv(a / "head_from_helmet.csv")) {
+    head_from_helmet[pose.frame] = pose.pose;
   }
   for (size_t f = 0; f < helmet.size(); ++f) {
     for (const auto& [name, p] : helmet[f].bundles) {

@@ -1,0 +1,74 @@
+#include "stabilization/accuracy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <fmt/format.h>
+
+namespace hmc {
+
+std::string PoseError::BriefReport() const {
+  return fmt::format(
+      "head pose vs truth over {} frames: translation RMS {:.4f} mm (max {:.4f}), rotation "
+      "RMS {:.5f} deg (max {:.5f})",
+      frames, translation_rms_mm, translation_max_mm, rotation_rms_deg, rotation_max_deg);
+}
+
+PoseError ComparePoses(const std::vector<PoseFrame>& estimate,
+                       const std::vector<PoseFrame>& truth) {
+  std::map<int, Rigid3> by_frame;
+  for (const PoseFrame& t : truth) by_frame[t.frame] = t.pose;
+  PoseError error;
+  double sum_t = 0, sum_r = 0;
+  for (const PoseFrame& e : estimate) {
+    const auto it = by_frame.find(e.frame);
+    if (it == by_frame.end()) continue;
+    const Rigid3 diff = e.pose * it->second.inverse();
+    const double t = diff.translation().norm();
+    const double cos_angle = std::clamp((diff.linear().trace() - 1) / 2, -1.0, 1.0);
+    const double r = std::acos(cos_angle) * 180 / M_PI;
+    sum_t += t * t;
+    sum_r += r * r;
+    error.translation_max_mm = std::max(error.translation_max_mm, t);
+    error.rotation_max_deg = std::max(error.rotation_max_deg, r);
+    ++error.frames;
+  }
+  if (error.frames > 0) {
+    error.translation_rms_mm = std::sqrt(sum_t / error.frames);
+    error.rotation_rms_deg = std::sqrt(sum_r / error.frames);
+  }
+  return error;
+}
+
+std::string JawError::BriefReport() const {
+  return fmt::format(
+      "jaw vs truth over {} frames: RMS open {:.4f} deg, lateral {:.4f} deg, protrude {:.4f} "
+      "mm (max {:.4f}, {:.4f}, {:.4f})",
+      frames, rms[0], rms[1], rms[2], max[0], max[1], max[2]);
+}
+
+JawError CompareJaw(const std::vector<JawFrame>& estimate,
+                    const std::vector<JawFrame>& truth) {
+  std::map<int, JawPose> by_frame;
+  for (const JawFrame& t : truth) by_frame[t.frame] = t.pose;
+  JawError error;
+  std::array<double, 3> sum{};
+  for (const JawFrame& e : estimate) {
+    const auto it = by_frame.find(e.frame);
+    if (it == by_frame.end()) continue;
+    const std::array<double, 3> a = e.pose.ToArray(), b = it->second.ToArray();
+    for (int i = 0; i < 3; ++i) {
+      const double d = std::abs(a[i] - b[i]);
+      sum[i] += d * d;
+      error.max[i] = std::max(error.max[i], d);
+    }
+    ++error.frames;
+  }
+  for (int i = 0; i < 3; ++i) {
+    error.rms[i] = error.frames > 0 ? std::sqrt(sum[i] / error.frames) : 0.0;
+  }
+  return error;
+}
+
+}  // namespace hmc

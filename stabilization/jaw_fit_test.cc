@@ -1,0 +1,126 @@
+#include "stabilization/jaw_fit.h"
+
+#include <random>
+#include <tuple>
+
+#include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "stabilization/accuracy.h"
+#include "stabilization/jaw_cost.h"
+#include "stabilization/shot_test_util.h"
+#include "stabilization/stabilize.h"
+
+namespace hmc {
+namespace {
+
+const SmallActor& Actor1() {
+  static const SmallActor actor = MakeSmallActor(1);
+  return actor;
+}
+
+TEST(JawCostTest, JacobianMatchesFiniteDifferences) {
+  const SmallActor& a = Actor1();
+  ASSERT_TRUE(a.actor.jaw_rig.has_value());
+  const JawRig& rig = *a.actor.jaw_rig;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> open(-2, 25), lateral(-6, 6), protrude(-3, 5);
+  std::normal_distribution<double> normal(0, 3);
+  for (int trial = 0; trial < 20; ++trial) {
+    const int k = trial % a.markers.num_markers;
+    const Vec3 u = a.markers.neutral.row(k).transpose() + Vec3(normal(rng), normal(rng), normal(rng));
+    const Vec3 p = u + Vec3(normal(rng), normal(rng), normal(rng));
+    const Vec3 m(normal(rng), normal(rng), normal(rng));
+    std::unique_ptr<ceres::CostFunction> cost(JawMarkerCost::Create(rig, p, &u, 0.7, m));
+    double theta[3] = {open(rng), lateral(rng), protrude(rng)};
+    std::vector<double*> parameters = {theta};
+    ceres::NumericDiffOptions numeric;
+    const std::vector<const ceres::Manifold*>* no_manifolds = nullptr;
+    ceres::GradientChecker checker(cost.get(), no_manifolds, numeric);
+    ceres::GradientChecker::ProbeResults results;
+    EXPECT_TRUE(checker.Probe(parameters.data(), 1e-7, &results)) << results.error_log;
+  }
+}
+
+TEST(JawCostTest, ResidualIsZeroAtTheSkinnedPosition) {
+  // The functor's skinning is MarkerModel::Skin with JawRig::Transform.
+  const SmallActor& a = Actor1();
+  const JawRig& rig = *a.actor.jaw_rig;
+  const JawPose pose{14.0, -3.5, 1.25};
+  const Rigid3 t = rig.Transform(pose);
+  for (int k = 0; k < a.markers.num_markers; k += 7) {
+    const Vec3 u = a.markers.neutral.row(k).transpose() + Vec3(0.3, -0.2, 0.5);
+    const Vec3 p = a.markers.Skin(k, t, u);
+    const JawMarkerCost cost(rig, p, &u, a.markers.jaw_weight[k],
+                             a.markers.jaw_moment.row(k).transpose());
+    const std::array<double, 3> theta = pose.ToArray();
+    double r[3];
+    cost(theta.data(), r);
+    EXPECT_LT(Vec3(r[0], r[1], r[2]).norm(), 1e-10);
+    EXPECT_LT((a.markers.Unskin(k, t, p) - u).norm(), 1e-10);
+  }
+}
+
+// On stabilized bundles (the pipeline's input) of 3 actors, noise-free and
+// at 0.2 mm: the targets.
+class JawAccuracy : public ::testing::TestWithParam<std::tuple<int, double>> {};
+
+TEST_P(JawAccuracy, JawPoseMatchesTheTruth) {
+  const auto [seed, noise] = GetParam();
+  const SmallActor a = MakeSmallActor(seed);
+  PerformanceOptions perf;
+  perf.seed = seed + 20;
+  perf.frames = 60;
+  perf.jaw_activity = 0.6;
+  const ShotTruth shot = MakeShotTruth(a, perf, noise);
+  const StabilizeOutput stabilized = RunStabilize(a.markers, shot.helmet, StabilizeOptions());
+  const JawOutput out = RunJaw(a.actor, a.markers, stabilized.bundles, JawOptions());
+  EXPECT_EQ(out.num_ok, perf.frames);
+  const JawError error = CompareJaw(out.JawFrames(), shot.jaw);
+  const double degrees = noise == 0 ? 0.2 : 0.5, mm = noise == 0 ? 0.1 : 0.3;
+  EXPECT_LT(error.rms[0], degrees) << error.BriefReport();
+  EXPECT_LT(error.rms[1], degrees) << error.BriefReport();
+  EXPECT_LT(error.rms[2], mm) << error.BriefReport();
+}
+
+INSTANTIATE_TEST_SUITE_P(SeedsAndNoise, JawAccuracy,
+                         ::testing::Combine(::testing::Values(1, 2, 3),
+                                            ::testing::Values(0.0, 0.2)));
+
+TEST(JawFitTest, FramesWithoutJawMarkersAreInterpolatedAndFlagged) {
+  const SmallActor& a = Actor1();
+  PerformanceOptions perf;
+  perf.frames = 12;
+  ShotTruth shot = MakeShotTruth(a, perf, 0.0);
+  JawOptions options;
+  options.smoothness = 0;
+  const std::vector<int> jaw = JawMarkers(a.markers, a.actor, options);
+  ASSERT_GE(static_cast<int>(jaw.size()), options.min_jaw_markers);
+  for (int k : jaw) shot.head[5].bundles.erase(a.markers.names[k]);
+  shot.head[6].bundles.clear();
+  const JawOutput out = RunJaw(a.actor, a.markers, shot.head, options);
+  EXPECT_EQ(out.num_interpolated, 2);
+  EXPECT_FALSE(out.frames[5].ok);
+  EXPECT_FALSE(out.frames[6].ok);
+  EXPECT_NE(out.frames[5].reason.find("jaw markers"), std::string::npos);
+  const std::array<double, 3> before = out.frames[4].pose.ToArray();
+  const std::array<double, 3> after = out.frames[7].pose.ToArray();
+  const std::array<double, 3> f5 = out.frames[5].pose.ToArray();
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(f5[i], before[i] + (after[i] - before[i]) / 3, 1e-12);
+}
+
+TEST(JawFitTest, AnActorWithoutAJawRigGetsAClearMessage) {
+  SmallActor a = MakeSmallActor(2);
+  a.actor.jaw_rig.reset();
+  a.markers = ComputeMarkerModel(a.actor);
+  try {
+    RunJaw(a.actor, a.markers, {}, JawOptions());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no jaw rig"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace hmc

@@ -1,0 +1,124 @@
+// `hmc stabilize`: per frame, the rigid head_from_helmet that maps the
+// frame's helmet-space bundles onto the actor's neutral markers, and the
+// bundles in head space (method, weighting and measured accuracy:
+// docs/stabilization.md; files: docs/formats.md).
+//
+// Per frame, with a_k the bundle of marker k in helmet space and q_k the
+// marker on the neutral:
+//   min_T sum_k w0_k rho(|T a_k - q_k - B_k c|)
+// by iteratively reweighted weighted Kabsch fits (stabilization/rigid_fit.h).
+//  - Prior weights w0_k from the actor's dataset (`weighting: motion`): the
+//    inverse of the variance a marker's position has about the rigid head,
+//    w0_k = 1 / (sigma^2 + m_k^2), sigma the assumed bundle noise and m_k
+//    the RMS over the dataset's shapes of how far shape n moves marker k
+//    (stabilization/marker_model.h); normalised so the largest is 1. A
+//    marker no shape moves is trusted, one the brows or cheeks move is not.
+//    `tags`: 1 on markers tagged `stable`, 0 elsewhere; `both`: the motion
+//    weights on the `stable` markers only.
+//  - Expression-aware (`expression: true`): c are global shape weights
+//    fitted to all markers' residuals T a_k - q_k = B_k c by ridge least
+//    squares (B_k the 3 x N skinned shape displacements at marker k),
+//    alternating with the rigid fit, so a brow raise or a squint is
+//    explained by the shapes and does not tilt the head. A marker more than
+//    3 loss scales off the expression's fit is left out of the next shape
+//    fit (a bad track would pull the shape weights).
+//  - Shot weights (`shot_weights: true`): a second pass whose prior weights
+//    are w0_k = 1 / (v_k + v_floor), v_k marker k's median squared residual
+//    over the first pass's frames and v_floor the median v_k of the markers
+//    the dataset trusts (w0 >= 0.5): with the expression explained, the
+//    whole face carries information about the head.
+//  - A frame with fewer than min_markers usable markers (present, with a
+//    prior weight of at least min_weight) or with collinear ones is flagged
+//    and its pose interpolated from the nearest good frames (rotation by
+//    slerp, translation linearly; held at the ends).
+//  - Optional smoothing: a centred moving average of the poses over
+//    smooth_frames frames (slip is slow, vibration is fast: the vibration
+//    is real head-helmet motion, so smoothing is off by default).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/actor.h"
+#include "core/frame_data.h"
+#include "core/options.h"
+#include "stabilization/marker_model.h"
+
+namespace hmc {
+
+struct StabilizeOptions {
+  std::string weighting = "motion";  // motion | tags | both (see stabilize.h)
+  double noise_mm = 0.1;         // sigma: bundle noise assumed by the motion weights (mm)
+  std::string loss = "cauchy";   // robust loss of the reweighting: none | huber | cauchy
+  double loss_scale_mm = 0.5;    // residual scale of the robust loss (mm)
+  int irls_iterations = 20;      // most reweighting steps per fit
+  bool expression = true;        // alternate the rigid fit with global shape weights
+  bool shot_weights = true;      // second pass with weights from the first pass's per-marker residuals
+  int expression_iterations = 4;  // rigid / shape-weight alternations (expression)
+  double expression_ridge = 0.1;  // ridge on the shape weights (mm^2 per unit weight^2)
+  int min_markers = 4;           // fewer usable markers: the frame is interpolated
+  double min_weight = 0.01;      // prior weight (of the largest) a usable marker needs
+  double bad_track_mm = 1.0;     // a trusted marker (prior weight >= 0.5) whose median residual exceeds this is reported
+  int smooth_frames = 0;         // centred moving-average window over poses (frames; 0 or 1 = off)
+  int threads = 0;               // worker threads (0 = all cores)
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
+struct MarkerResidual {
+  int marker = -1;           // index into the actor's markers
+  double residual_mm = 0;    // |T a_k - q_k (- B_k c)| after the fit
+  double weight = 0;         // final weight (prior x robust; 0 where not fitted)
+};
+
+struct StabilizedFrame {
+  int frame = 0;
+  Rigid3 head_from_helmet = Rigid3::Identity();
+  bool ok = false;           // false: pose interpolated (see reason)
+  std::string reason;        // why the frame was not fitted
+  int markers_used = 0;      // usable markers present
+  double rms_mm = 0;         // weighted RMS residual of the fit (mm)
+  std::vector<MarkerResidual> residuals;  // every present marker
+};
+
+struct BadTrack {
+  std::string marker;
+  double median_residual_mm = 0;
+};
+
+struct StabilizeOutput {
+  std::vector<StabilizedFrame> frames;
+  std::vector<BundleFrame> bundles;   // head space, every present marker
+  std::vector<BadTrack> bad_tracks;
+  std::vector<std::string> unknown_markers;  // in the bundles, not in the actor
+  int num_ok = 0;
+  int num_interpolated = 0;
+  double mean_rms_mm = 0;     // over fitted frames
+  double seconds = 0;
+  std::string BriefReport() const;
+};
+
+// The prior weights w0 (K, largest 1) of `options.weighting`.
+Eigen::VectorXd StabilizationWeights(const MarkerModel& model,
+                                     const StabilizeOptions& options);
+
+// Stabilizes every frame (parallel over frames; deterministic). Throws
+// InputError for invalid options; bad frames are values.
+StabilizeOutput RunStabilize(const MarkerModel& model,
+                             const std::vector<BundleFrame>& bundles_helmet,
+                             const StabilizeOptions& options);
+
+// Writes head_from_helmet.csv, bundles.csv, residuals.csv,
+// options_used.yaml and, last, summary.json to `dir` (created if missing).
+void WriteStabilizeOutput(const StabilizeOutput& output,
+                          const MarkerModel& model,
+                          const StabilizeOptions& options,
+                          const std::filesystem::path& dir);
+
+// Fills the poses of frames with !ok from the nearest fitted frames
+// (slerp/lerp by frame number; held at the ends; identity if none is ok).
+void InterpolateFailedPoses(std::vector<StabilizedFrame>* frames);
+
+}  // namespace hmc
