@@ -22,7 +22,6 @@
 #include "core/image_io.h"
 #include "core/mesh_sequence.h"
 #include "core/render_mesh.h"
-#include "core/text.h"
 #include "core/tracks_2d.h"
 #include "pipeline/run_pipeline.h"
 #include "pipeline/svg_plot.h"
@@ -140,27 +139,6 @@ void CollectWarnings(const nlohmann::json& j, const std::string& stage,
       }
     }
   }
-}
-
-struct PoseRow {
-  int frame;
-  Rigid3 head_from_helmet;
-};
-
-// head_from_helmet.csv: frame,r00,...,r22,tx,ty,tz (docs/formats.md).
-std::vector<PoseRow> ReadPoses(const fs::path& path) {
-  static const std::vector<std::string> header = {"frame", "r00", "r01", "r02", "r10", "r11", "r12",
-                                                  "r20",   "r21", "r22", "tx",  "ty",  "tz"};
-  std::vector<PoseRow> rows;
-  ForEachCsvRow(path, header, [&](const CsvRow& row) {
-    PoseRow p{row.Int(0), Rigid3::Identity()};
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) p.head_from_helmet.linear()(r, c) = row.Finite(1 + 3 * r + c);
-    }
-    p.head_from_helmet.translation() = Vec3(row.Finite(10), row.Finite(11), row.Finite(12));
-    rows.push_back(p);
-  });
-  return rows;
 }
 
 // Rotation angle of `r` (deg), through the quaternion: exact near 0, where
@@ -349,11 +327,11 @@ void ReportWriter::StabilizeSection() {
   const fs::path file = Stage("stabilize", "head_from_helmet.csv");
   if (!Exists(file)) return;
   Section("Stabilize");
-  const std::vector<PoseRow> poses = ReadPoses(file);
+  const std::vector<PoseFrame> poses = ReadPosesCsv(file);
   if (poses.empty()) return;
   PlotSeries t{"translation (mm)", {}}, r{"rotation (deg)", {}};
-  for (const PoseRow& p : poses) {
-    const Rigid3 d = p.head_from_helmet * poses.front().head_from_helmet.inverse();
+  for (const PoseFrame& p : poses) {
+    const Rigid3 d = p.pose * poses.front().pose.inverse();
     t.points.emplace_back(p.frame, d.translation().norm());
     r.points.emplace_back(p.frame, RotationDeg(d.linear()));
   }
@@ -361,14 +339,14 @@ void ReportWriter::StabilizeSection() {
   const fs::path truth_file = shot_ / "head_from_helmet.csv";
   if (!Exists(truth_file)) return;
   std::map<int, Rigid3> truth;
-  for (const PoseRow& p : ReadPoses(truth_file)) truth[p.frame] = p.head_from_helmet;
+  for (const PoseFrame& p : ReadPosesCsv(truth_file)) truth[p.frame] = p.pose;
   std::vector<double> te, re;
   PlotSeries et{"translation (mm)", {}}, er{"rotation (deg)", {}};
-  for (const PoseRow& p : poses) {
+  for (const PoseFrame& p : poses) {
     const auto it = truth.find(p.frame);
     if (it == truth.end()) continue;
-    te.push_back((p.head_from_helmet.translation() - it->second.translation()).norm());
-    re.push_back(RotationDeg(p.head_from_helmet.linear() * it->second.linear().transpose()));
+    te.push_back((p.pose.translation() - it->second.translation()).norm());
+    re.push_back(RotationDeg(p.pose.linear() * it->second.linear().transpose()));
     et.points.emplace_back(p.frame, te.back());
     er.points.emplace_back(p.frame, re.back());
   }
