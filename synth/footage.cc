@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/raster.h"
+#include "synth/sensor_noise.h"
 #include "synth/synth_random.h"
 
 namespace hmc {
@@ -83,134 +84,6 @@ void FootageRenderOptions::SetClean() {
 
 namespace {
 
-// The Kannala-Brandt projection of FisheyeCamera::Project, inlined for the
-// renderer's hot loops; `max_theta` (the camera's MaxTheta) replaces the
-// per-point monotonicity check.
-struct FastFisheye {
-  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta;
-  explicit FastFisheye(const FisheyeCamera& c)
-      : fx(c.fx), fy(c.fy), cx(c.cx), cy(c.cy), k1(c.k[0]), k2(c.k[1]), k3(c.k[2]),
-        k4(c.k[3]), max_theta(c.MaxTheta()) {}
-  bool Project(const Vec3& p, Vec2* pixel) const {
-    const double r = std::sqrt(p.x() * p.x() + p.y() * p.y());
-    double scale;
-    if (r <= 1e-8 * p.z()) {
-      if (!(p.z() > 0)) return false;
-      scale = 1.0 / p.z();
-    } else {
-      if (!(r > 0)) return false;
-      const double theta = std::atan2(r, p.z());
-      if (!(theta < max_theta)) return false;
-      const double t2 = theta * theta;
-      scale = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) / r;
-    }
-    (*pixel)[0] = fx * scale * p.x() + cx;
-    (*pixel)[1] = fy * scale * p.y() + cy;
-    return true;
-  }
-};
-
-// A vertex of the subdivision: camera-frame point, its projection, and its
-// row in the output (>= 0: a mesh vertex; < 0: -(k + 1), the k-th new one).
-struct SubVertex {
-  Vec3 p;
-  Vec2 s;
-  int ref;
-};
-
-struct ChunkOut {
-  std::vector<Eigen::Vector3d> new_rows;
-  std::vector<std::array<int, 3>> tris;
-  std::vector<int> face;
-  int64_t input = 0;
-  int64_t split = 0;
-  double max_error = 0;
-};
-
-class Subdivider {
- public:
-  Subdivider(const FastFisheye& camera, double tolerance, ChunkOut* out)
-      : camera_(camera), tolerance_(tolerance), out_(out) {}
-
-  // Midpoint sagitta of edge (a, b); depends on the edge alone (symmetric in
-  // a and b), so both triangles sharing an edge make the same decision.
-  // Returns false if the midpoint does not project.
-  bool EdgeError(const SubVertex& a, const SubVertex& b, SubVertex* mid,
-                 double* error) const {
-    mid->p = 0.5 * (a.p + b.p);
-    if (!camera_.Project(mid->p, &mid->s)) return false;
-    *error = (mid->s - 0.5 * (a.s + b.s)).norm();
-    return true;
-  }
-
-  // Emits triangle (a, b, c) of mesh face `face`, split where needed.
-  void Emit(const SubVertex& a, const SubVertex& b, const SubVertex& c, int face,
-            int depth) {
-    SubVertex m[3];
-    double err[3];
-    const SubVertex* v[3] = {&a, &b, &c};
-    bool split[3];
-    int num_split = 0;
-    for (int e = 0; e < 3; ++e) {
-      const SubVertex& p = *v[e];
-      const SubVertex& q = *v[(e + 1) % 3];
-      if (!EdgeError(p, q, &m[e], &err[e])) return;
-      // Edges shorter than a quarter pixel are not split further: their
-      // error is already far below any tolerance in practice.
-      split[e] = err[e] > tolerance_ && (p.s - q.s).norm() > 0.25 && depth < kMaxDepth;
-      num_split += split[e];
-    }
-    if (num_split == 0) {
-      out_->tris.push_back({a.ref, b.ref, c.ref});
-      out_->face.push_back(face);
-      out_->max_error = std::max({out_->max_error, err[0], err[1], err[2]});
-      return;
-    }
-    if (depth == 0) ++out_->split;
-    for (int e = 0; e < 3; ++e) {
-      if (split[e]) m[e].ref = AddVertex(m[e]);
-    }
-    if (num_split == 3) {
-      Emit(a, m[0], m[2], face, depth + 1);
-      Emit(m[0], b, m[1], face, depth + 1);
-      Emit(m[2], m[1], c, face, depth + 1);
-      Emit(m[0], m[1], m[2], face, depth + 1);
-      return;
-    }
-    // Rotate so that edge 0 (v0 v1) is split and, for two splits, edge 1 too.
-    int r = 0;
-    if (num_split == 1) {
-      while (!split[r]) ++r;
-    } else {
-      while (split[r]) ++r;  // r: the unsplit edge
-      r = (r + 1) % 3;
-    }
-    const SubVertex& v0 = *v[r];
-    const SubVertex& v1 = *v[(r + 1) % 3];
-    const SubVertex& v2 = *v[(r + 2) % 3];
-    const SubVertex& m01 = m[r];
-    if (num_split == 1) {
-      Emit(v0, m01, v2, face, depth + 1);
-      Emit(m01, v1, v2, face, depth + 1);
-    } else {
-      const SubVertex& m12 = m[(r + 1) % 3];
-      Emit(m01, v1, m12, face, depth + 1);
-      Emit(v0, m01, m12, face, depth + 1);
-      Emit(v0, m12, v2, face, depth + 1);
-    }
-  }
-
- private:
-  static constexpr int kMaxDepth = 10;
-  int AddVertex(const SubVertex& v) {
-    out_->new_rows.emplace_back(v.s.x(), v.s.y(), v.p.norm());
-    return -static_cast<int>(out_->new_rows.size());
-  }
-  const FastFisheye& camera_;
-  double tolerance_;
-  ChunkOut* out_;
-};
-
 // Ray (origin 0, direction d) against the plane of triangle (p0, p1, p2)
 // (Moller & Trumbore 1997, without the inside test): distance along d and
 // barycentrics. Returns false if the ray is parallel to the plane.
@@ -231,107 +104,10 @@ inline bool IntersectPlane(const Vec3& d, const Vec3& p0, const Vec3& p1, const 
   return true;
 }
 
-uint64_t Mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
-// Standard normal draws, looked up by a per-pixel hash: sensor noise needs
-// a million draws per image, and Box-Muller per pixel cost more than the
-// whole shading. 2^16 values (256 KB, cache resident) picked at random per
-// pixel are, for a tracker, as good as independent draws.
-constexpr int kNormalTableBits = 16;
-const std::vector<float>& NormalTable() {
-  static const std::vector<float> table = [] {
-    std::vector<float> t(size_t{1} << kNormalTableBits);
-    SynthRandom rng(0x5eed);
-    for (float& v : t) v = static_cast<float>(rng.Normal());
-    return t;
-  }();
-  return table;
-}
-
 // Reference distance of the head lights' irradiance (mm).
 constexpr double kLightReferenceMm = 170.0;
 
 }  // namespace
-
-FisheyeTriangles SubdivideForFisheye(const FisheyeCamera& camera, const MatX3d& X_cam,
-                                     const MatX3i& F, double max_edge_error_px) {
-  const FastFisheye fast(camera);
-  const int num_vertices = static_cast<int>(X_cam.rows());
-  FisheyeTriangles out;
-  out.screen.resize(num_vertices, 3);
-  std::vector<char> ok(num_vertices, 0);
-  ParallelFor(
-      0, num_vertices,
-      [&](int64_t v) {
-        Vec2 s;
-        const Vec3 p = X_cam.row(v).transpose();
-        if (fast.Project(p, &s)) {
-          out.screen.row(v) << s.x(), s.y(), p.norm();
-          ok[v] = 1;
-        } else {
-          out.screen.row(v).setConstant(std::numeric_limits<double>::quiet_NaN());
-        }
-      },
-      1024);
-  const int num_faces = static_cast<int>(F.rows());
-  constexpr int kChunk = 2048;
-  const int num_chunks = (num_faces + kChunk - 1) / kChunk;
-  std::vector<ChunkOut> chunks(num_chunks);
-  ParallelFor(0, num_chunks, [&](int64_t chunk) {
-    ChunkOut& co = chunks[chunk];
-    Subdivider subdivider(fast, max_edge_error_px, &co);
-    const int end = std::min(num_faces, static_cast<int>((chunk + 1) * kChunk));
-    for (int f = static_cast<int>(chunk) * kChunk; f < end; ++f) {
-      SubVertex c[3];
-      bool valid = true;
-      for (int i = 0; i < 3; ++i) {
-        const int v = F(f, i);
-        if (v < 0 || v >= num_vertices || !ok[v]) {
-          valid = false;
-          break;
-        }
-        c[i] = {X_cam.row(v).transpose(), out.screen.row(v).head<2>().transpose(), v};
-      }
-      if (!valid) continue;
-      // Back faces (counter-clockwise seen from outside, camera at origin).
-      const Vec3 n = (c[1].p - c[0].p).cross(c[2].p - c[0].p);
-      if (!(n.dot(-c[0].p) > 0)) continue;
-      ++co.input;
-      subdivider.Emit(c[0], c[1], c[2], f, 0);
-    }
-  });
-  // Concatenate in chunk order: the same result whatever the schedule.
-  int64_t num_new = 0, num_tris = 0;
-  for (const ChunkOut& co : chunks) {
-    num_new += static_cast<int64_t>(co.new_rows.size());
-    num_tris += static_cast<int64_t>(co.tris.size());
-  }
-  out.screen.conservativeResize(num_vertices + num_new, 3);
-  out.F.resize(num_tris, 3);
-  out.face.resize(num_tris);
-  int64_t row = num_vertices, tri = 0;
-  for (const ChunkOut& co : chunks) {
-    const int64_t base = row;
-    for (const Eigen::Vector3d& r : co.new_rows) out.screen.row(row++) = r.transpose();
-    for (size_t t = 0; t < co.tris.size(); ++t, ++tri) {
-      for (int i = 0; i < 3; ++i) {
-        const int ref = co.tris[t][i];
-        out.F(tri, i) = ref >= 0 ? ref : static_cast<int>(base + (-ref - 1));
-      }
-      out.face[tri] = co.face[t];
-    }
-    out.stats.input_triangles += co.input;
-    out.stats.split_triangles += co.split;
-    out.stats.max_edge_error_px = std::max(out.stats.max_edge_error_px, co.max_error);
-  }
-  out.stats.output_triangles = num_tris;
-  return out;
-}
 
 FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
                                  const std::vector<Marker>& markers, const HelmetRig& rig,
@@ -344,9 +120,20 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
   for (int f = 0; f < F_.rows(); ++f) {
     for (int i = 0; i < 3; ++i) vertex_faces_[F_(f, i)].push_back(f);
   }
-  // Dots: face-plane centres, binned by grid cell.
+  for (const HelmetTag& tag : rig_.tags) patterns_.emplace_back(tag.id);
   const Vec2 lo = st.colwise().minCoeff().transpose();
   const Vec2 hi = st.colwise().maxCoeff().transpose();
+  IndexDots(neutral, lo, hi);
+  IndexTriangles(lo, hi);
+  MakeAlbedoTexture(seed, lo, hi);
+  PrecomputeRays();
+}
+
+// Dots: face-plane centres and skin metrics, binned by grid cell.
+void FootageRenderer::IndexDots(const TriMesh& neutral, const Vec2& lo, const Vec2& hi) {
+  const MatX2d& st = st_;
+  const std::vector<Marker>& markers = markers_;
+  const FootageRenderOptions& options = options_;
   grid_origin_ = lo - Vec2::Constant(cell_);
   grid_w_ = static_cast<int>((hi.x() - grid_origin_.x()) / cell_) + 2;
   grid_h_ = static_cast<int>((hi.y() - grid_origin_.y()) / cell_) + 2;
@@ -390,7 +177,11 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
       }
     }
   }
-  // Triangles by face-plane cell, for LocateFacePlane.
+}
+
+// Triangles by face-plane cell, for LocateFacePlane.
+void FootageRenderer::IndexTriangles(const Vec2& lo, const Vec2& hi) {
+  const MatX2d& st = st_;
   tri_origin_ = lo - Vec2::Constant(tri_cell_);
   tri_w_ = static_cast<int>((hi.x() - tri_origin_.x()) / tri_cell_) + 2;
   tri_h_ = static_cast<int>((hi.y() - tri_origin_.y()) / tri_cell_) + 2;
@@ -411,6 +202,9 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
       }
     }
   }
+}
+
+void FootageRenderer::MakeAlbedoTexture(uint64_t seed, const Vec2& lo, const Vec2& hi) {
   // Skin albedo variation: smooth random fields at 6 mm and 1.5 mm, upsampled
   // bicubically to the texture, zero mean, in [-1, 1].
   texture_origin_ = lo - Vec2::Constant(2.0);
@@ -430,7 +224,9 @@ FootageRenderer::FootageRenderer(const TriMesh& neutral, const MatX2d& st,
     field += weight * fine;
   }
   albedo_texture_ = field;
-  for (const HelmetTag& tag : rig_.tags) patterns_.emplace_back(tag.id);
+}
+
+void FootageRenderer::PrecomputeRays() {
   // Per camera: the exact ray of every pixel centre and the vignetting.
   for (const HelmetCamera& hc : rig_.cameras) {
     const FisheyeCamera& cam = hc.camera;
@@ -504,17 +300,16 @@ double FootageRenderer::Albedo(const Vec2& st) const {
   return options_.skin_albedo * (1 + options_.albedo_variation * v);
 }
 
-void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_dots,
-                                cv::Mat* radiance, cv::Mat* depth, cv::Mat* surface,
-                                SubdivisionStats* stats) const {
+FootageRenderer::FaceInCamera FootageRenderer::PlaceFace(int camera,
+                                                         const SceneState& state) const {
   const HelmetCamera& hc = rig_.cameras[camera];
-  const FisheyeCamera& cam = hc.camera;
-  const int width = cam.width, height = cam.height;
   const Rigid3 cam_from_head = hc.cam_from_helmet * state.head_from_helmet.inverse();
   const MatX3d& X_head = *state.X_head;
   const int num_vertices = static_cast<int>(X_head.rows());
   HMC_CHECK(num_vertices == st_.rows());
-  MatX3d X(num_vertices, 3);
+  FaceInCamera face;
+  face.X.resize(num_vertices, 3);
+  MatX3d& X = face.X;
   const Mat3 R = cam_from_head.linear();
   const Vec3 t = cam_from_head.translation();
   ParallelFor(
@@ -530,56 +325,48 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
         face_n.row(f) = (p1 - p0).cross(p2 - p0).transpose();
       },
       2048);
-  MatX3d normal(num_vertices, 3);
+  face.normal.resize(num_vertices, 3);
   ParallelFor(
       0, num_vertices,
       [&](int64_t v) {
         Vec3 n = Vec3::Zero();
         for (int f : vertex_faces_[v]) n += face_n.row(f).transpose();
         const double len = n.norm();
-        normal.row(v) = (len > 0 ? Vec3(n / len) : Vec3(0, 0, -1)).transpose();
+        face.normal.row(v) = (len > 0 ? Vec3(n / len) : Vec3(0, 0, -1)).transpose();
       },
       2048);
+  return face;
+}
 
-  const FisheyeTriangles tris = SubdivideForFisheye(cam, X, F_, options_.max_edge_error_px);
-  if (stats) *stats = tris.stats;
-  RasterOptions raster_options;
-  raster_options.width = width;
-  raster_options.height = height;
-  // Only the triangle id per pixel: the shading below intersects each
-  // pixel's exact ray with that triangle, so the raster's own depth and
-  // barycentrics would be computed for nothing.
-  std::vector<int32_t> seen_triangle;
-  RasterizeTriangleIds(tris.screen, Eigen::VectorXd(), tris.F, raster_options, &seen_triangle);
-
-  // Head lights beside every camera of the rig, in this camera's frame.
+std::vector<Vec3> FootageRenderer::HeadLights(int camera) const {
+  const HelmetCamera& hc = rig_.cameras[camera];
   std::vector<Vec3> lights;
   for (const HelmetCamera& other : rig_.cameras) {
     const Vec3 centre_in_helmet = other.cam_from_helmet.inverse().translation();
     const Vec3 side = other.cam_from_helmet.linear().transpose() * Vec3::UnitX();
     lights.push_back(hc.cam_from_helmet * (centre_in_helmet + options_.light_offset * side));
   }
-  auto shade = [&](const Vec3& p, const Vec3& n) {
-    double irradiance = options_.ambient;
-    for (const Vec3& light : lights) {
-      const Vec3 to_light = light - p;
-      const double dist2 = to_light.squaredNorm();
-      const double cosine = n.dot(to_light) / std::sqrt(dist2);
-      if (cosine > 0) {
-        irradiance += options_.light_power * cosine * kLightReferenceMm * kLightReferenceMm / dist2;
-      }
-    }
-    return irradiance;
-  };
+  return lights;
+}
 
-  // Tags in this camera's frame, with their image bounding boxes.
-  struct TagView {
-    Mat3 R;  // cam_from_tag rotation
-    Vec3 t;
-    double size;
-    int index;  // into rig_.tags
-    int x0, y0, x1, y1;
-  };
+double FootageRenderer::Irradiance(const std::vector<Vec3>& lights, const Vec3& p,
+                                   const Vec3& n) const {
+  double irradiance = options_.ambient;
+  for (const Vec3& light : lights) {
+    const Vec3 to_light = light - p;
+    const double dist2 = to_light.squaredNorm();
+    const double cosine = n.dot(to_light) / std::sqrt(dist2);
+    if (cosine > 0) {
+      irradiance += options_.light_power * cosine * kLightReferenceMm * kLightReferenceMm / dist2;
+    }
+  }
+  return irradiance;
+}
+
+std::vector<FootageRenderer::TagView> FootageRenderer::TagsInView(int camera) const {
+  const HelmetCamera& hc = rig_.cameras[camera];
+  const FisheyeCamera& cam = hc.camera;
+  const int width = cam.width, height = cam.height;
   const FastFisheye fast(cam);
   std::vector<TagView> tag_views;
   for (size_t k = 0; k < rig_.tags.size(); ++k) {
@@ -614,9 +401,171 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
     tv.y1 = std::min(tv.y1, height - 1);
     tag_views.push_back(tv);
   }
+  return tag_views;
+}
 
+double FootageRenderer::DotTransmission(int camera, int x, int y, int f, const Vec3& p0,
+                                        const Vec3& p1, const Vec3& p2,
+                                        const Vec2& st) const {
+  const int gx = static_cast<int>((st.x() - grid_origin_.x()) / cell_);
+  const int gy = static_cast<int>((st.y() - grid_origin_.y()) / cell_);
+  if (gx < 0 || gy < 0 || gx >= grid_w_ || gy >= grid_h_) return 1.0;
+  const FisheyeCamera& cam = rig_.cameras[camera].camera;
+  const int width = cam.width, height = cam.height;
   const std::vector<Eigen::Vector3f>& rays = bearings_[camera];
   const double dot_r = options_.dot_radius;
+  double keep = 1.0;
+  bool have_jacobian = false;
+  // Derivatives of st per pixel step in x and y.
+  Vec2 jx = Vec2::Zero(), jy = Vec2::Zero();
+  auto coords = [&](const Vec3& bb) -> Vec2 {
+    return bb[0] * st_.row(F_(f, 0)).transpose() + bb[1] * st_.row(F_(f, 1)).transpose() +
+           bb[2] * st_.row(F_(f, 2)).transpose();
+  };
+  const Vec2 here = st;
+  for (int m : dot_grid_[gy * grid_w_ + gx]) {
+    // Distance on the skin (the metric of the neutral at the marker), so
+    // the dot is round on the skin.
+    const Vec2 offset = here - dot_st_[m];
+    const Vec2 g_offset = dot_metric_[m] * offset;
+    const double len = std::sqrt(std::max(0.0, offset.dot(g_offset)));
+    const double signed_mm = len - dot_r;
+    if (signed_mm > 2.5) continue;
+    if (!have_jacobian) {
+      // The coordinates at the neighbouring pixels' rays on the same plane.
+      auto at = [&](int nx, int ny, Vec2* out) {
+        const Vec3 dn = rays[ny * width + nx].cast<double>();
+        double sn;
+        Vec3 bn;
+        if (!IntersectPlane(dn, p0, p1, p2, &sn, &bn)) return false;
+        *out = coords(bn);
+        return true;
+      };
+      const int nx = x + 1 < width ? x + 1 : x - 1;
+      const int ny = y + 1 < height ? y + 1 : y - 1;
+      Vec2 sx, sy;
+      if (!at(nx, y, &sx) || !at(x, ny, &sy)) break;
+      jx = (sx - here) * (nx > x ? 1.0 : -1.0);
+      jy = (sy - here) * (ny > y ? 1.0 : -1.0);
+      have_jacobian = true;
+    }
+    // Signed distance to the dot's edge in pixels: the mm distance over its
+    // rate of change per pixel (its gradient in st, G offset / len, through
+    // the st Jacobian).
+    double coverage;
+    if (len < 1e-12) {
+      coverage = 1.0;
+    } else {
+      const Vec2 grad = g_offset / len;
+      const double rate = std::hypot(jx.dot(grad), jy.dot(grad));
+      const double signed_px = rate > 0 ? signed_mm / rate : signed_mm * 1e9;
+      coverage = std::clamp(0.5 - signed_px, 0.0, 1.0);
+    }
+    keep *= 1.0 - coverage;
+  }
+  return keep;
+}
+
+void FootageRenderer::CompositeTags(int camera, const std::vector<TagView>& tag_views,
+                                    const std::vector<Vec3>& lights, int x, int y,
+                                    double* value, double* dist, int* seen) const {
+  const FisheyeCamera& cam = rig_.cameras[camera].camera;
+  const int width = cam.width, height = cam.height;
+  const std::vector<Eigen::Vector3f>& rays = bearings_[camera];
+  const Vec3 d = rays[y * width + x].cast<double>();
+  for (size_t k = 0; k < tag_views.size(); ++k) {
+    const TagView& tv = tag_views[k];
+    if (x < tv.x0 || x > tv.x1 || y < tv.y0 || y > tv.y1) continue;
+    const Vec3 n = tv.R.col(2);
+    const double n_t = n.dot(tv.t);
+    const TagPattern& pattern = patterns_[tv.index];
+    const double half = pattern.PlateHalfExtent();
+    auto hit = [&](const Vec3& ray, double* s, Vec2* local) {
+      const double denom = n.dot(ray);
+      if (!(denom > 1e-12)) return false;
+      *s = n_t / denom;
+      const Vec3 q = tv.R.transpose() * (*s * ray - tv.t);
+      *local = q.head<2>() / tv.size;
+      return *s > 0;
+    };
+    double s_centre;
+    Vec2 local_centre;
+    if (!hit(d, &s_centre, &local_centre) || s_centre >= *dist) continue;
+    if (std::abs(local_centre.x()) > half + 0.1 || std::abs(local_centre.y()) > half + 0.1) {
+      continue;
+    }
+    // 4 x 4 supersamples, rays interpolated between neighbouring pixels.
+    const int nx = x + 1 < width ? x + 1 : x - 1;
+    const int ny = y + 1 < height ? y + 1 : y - 1;
+    const Vec3 dx = (rays[y * width + nx].cast<double>() - d) * (nx > x ? 1.0 : -1.0);
+    const Vec3 dy = (rays[ny * width + x].cast<double>() - d) * (ny > y ? 1.0 : -1.0);
+    double sum = 0;
+    int on_plate = 0;
+    // Inside one pattern cell: the 16 samples' rays span a parallelogram,
+    // whose central projection onto the plate is the convex quadrilateral
+    // of the 4 corner samples; if these lie in one (convex) cell, so do all
+    // 16, and the loop below would sum 16 equal values.
+    int cell = -2;
+    for (int j = 0; j < 4 && cell != -1; j += 3) {
+      for (int i = 0; i < 4 && cell != -1; i += 3) {
+        double s;
+        Vec2 local;
+        const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
+        const int c = hit(ray, &s, &local) ? pattern.Cell(local.x(), local.y()) : -1;
+        cell = cell == -2 || cell == c ? c : -1;
+        if (i == 0 && j == 0 && c >= 0) sum = 16 * pattern.Sample(local.x(), local.y());
+      }
+    }
+    if (cell >= 0) {
+      on_plate = 16;
+    } else {
+      sum = 0;
+    }
+    for (int j = 0; j < 4 && cell < 0; ++j) {
+      for (int i = 0; i < 4; ++i) {
+        const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
+        double s;
+        Vec2 local;
+        if (!hit(ray, &s, &local)) continue;
+        const double white = pattern.Sample(local.x(), local.y());
+        if (white < 0) continue;
+        ++on_plate;
+        sum += white;
+      }
+    }
+    if (on_plate == 0) continue;
+    const double reflectance =
+        options_.tag_black + (options_.tag_white - options_.tag_black) * sum / on_plate;
+    const double tag_value = reflectance * Irradiance(lights, s_centre * d, -n);
+    const double coverage = on_plate / 16.0;
+    *value = coverage * tag_value + (1 - coverage) * *value;
+    if (std::abs(local_centre.x()) <= half && std::abs(local_centre.y()) <= half) {
+      *dist = s_centre;
+      *seen = kTagSurface - tv.index;
+    }
+  }
+}
+
+void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_dots,
+                                cv::Mat* radiance, cv::Mat* depth, cv::Mat* surface,
+                                SubdivisionStats* stats) const {
+  const FisheyeCamera& cam = rig_.cameras[camera].camera;
+  const int width = cam.width, height = cam.height;
+  const FaceInCamera face = PlaceFace(camera, state);
+  const MatX3d& X = face.X;
+  const FisheyeTriangles tris = SubdivideForFisheye(cam, X, F_, options_.max_edge_error_px);
+  if (stats) *stats = tris.stats;
+  RasterOptions raster_options;
+  raster_options.width = width;
+  raster_options.height = height;
+  // Only the triangle id per pixel: the shading below intersects each
+  // pixel's exact ray with that triangle, so the raster's own depth and
+  // barycentrics would be computed for nothing.
+  std::vector<int32_t> seen_triangle;
+  RasterizeTriangleIds(tris.screen, Eigen::VectorXd(), tris.F, raster_options, &seen_triangle);
+  const std::vector<Vec3> lights = HeadLights(camera);
+  const std::vector<TagView> tag_views = TagsInView(camera);
+  const std::vector<Eigen::Vector3f>& rays = bearings_[camera];
   ParallelFor(0, height, [&](int64_t y64) {
     const int y = static_cast<int>(y64);
     float* out_row = radiance->ptr<float>(y);
@@ -628,7 +577,7 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
       double value = options_.background;
       double dist = std::numeric_limits<double>::infinity();
       int seen = -1;
-      // Face.
+      // Face: the pixel's exact ray against the visible triangle's plane.
       const int sub = seen_triangle[index];
       if (sub >= 0 && d.squaredNorm() > 0) {
         const int f = tris.face[sub];
@@ -639,148 +588,23 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
           dist = s;
           seen = f;
           const Vec3 p = s * d;
-          Vec3 n = b[0] * normal.row(F_(f, 0)).transpose() +
-                   b[1] * normal.row(F_(f, 1)).transpose() +
-                   b[2] * normal.row(F_(f, 2)).transpose();
+          Vec3 n = b[0] * face.normal.row(F_(f, 0)).transpose() +
+                   b[1] * face.normal.row(F_(f, 1)).transpose() +
+                   b[2] * face.normal.row(F_(f, 2)).transpose();
           n.normalize();
           const Vec2 st = b[0] * st_.row(F_(f, 0)).transpose() +
                           b[1] * st_.row(F_(f, 1)).transpose() +
                           b[2] * st_.row(F_(f, 2)).transpose();
           double albedo = Albedo(st);
           if (paint_dots) {
-            const int gx = static_cast<int>((st.x() - grid_origin_.x()) / cell_);
-            const int gy = static_cast<int>((st.y() - grid_origin_.y()) / cell_);
-            if (gx >= 0 && gy >= 0 && gx < grid_w_ && gy < grid_h_) {
-              double keep = 1.0;
-              bool have_jacobian = false;
-              // Derivatives of st per pixel step in x and y.
-              Vec2 jx = Vec2::Zero(), jy = Vec2::Zero();
-              auto coords = [&](const Vec3& bb) -> Vec2 {
-                return bb[0] * st_.row(F_(f, 0)).transpose() +
-                       bb[1] * st_.row(F_(f, 1)).transpose() +
-                       bb[2] * st_.row(F_(f, 2)).transpose();
-              };
-              const Vec2 here = st;
-              for (int m : dot_grid_[gy * grid_w_ + gx]) {
-                // Distance on the skin (the metric of the neutral at the
-                // marker), so the dot is round on the skin.
-                const Vec2 offset = here - dot_st_[m];
-                const Vec2 g_offset = dot_metric_[m] * offset;
-                const double len = std::sqrt(std::max(0.0, offset.dot(g_offset)));
-                const double signed_mm = len - dot_r;
-                if (signed_mm > 2.5) continue;
-                if (!have_jacobian) {
-                  // The coordinates at the neighbouring pixels' rays on the
-                  // same plane.
-                  auto at = [&](int nx, int ny, Vec2* out) {
-                    const Vec3 dn = rays[ny * width + nx].cast<double>();
-                    double sn;
-                    Vec3 bn;
-                    if (!IntersectPlane(dn, p0, p1, p2, &sn, &bn)) return false;
-                    *out = coords(bn);
-                    return true;
-                  };
-                  const int nx = x + 1 < width ? x + 1 : x - 1;
-                  const int ny = y + 1 < height ? y + 1 : y - 1;
-                  Vec2 sx, sy;
-                  if (!at(nx, y, &sx) || !at(x, ny, &sy)) break;
-                  jx = (sx - here) * (nx > x ? 1.0 : -1.0);
-                  jy = (sy - here) * (ny > y ? 1.0 : -1.0);
-                  have_jacobian = true;
-                }
-                // Signed distance to the dot's edge in pixels: the mm distance
-                // over its rate of change per pixel (its gradient in st,
-                // G offset / len, through the st Jacobian).
-                double coverage;
-                if (len < 1e-12) {
-                  coverage = 1.0;
-                } else {
-                  const Vec2 grad = g_offset / len;
-                  const double rate = std::hypot(jx.dot(grad), jy.dot(grad));
-                  const double signed_px = rate > 0 ? signed_mm / rate : signed_mm * 1e9;
-                  coverage = std::clamp(0.5 - signed_px, 0.0, 1.0);
-                }
-                keep *= 1.0 - coverage;
-              }
-              albedo = options_.dot_albedo + (albedo - options_.dot_albedo) * keep;
-            }
+            const double keep = DotTransmission(camera, x, y, f, p0, p1, p2, st);
+            albedo = options_.dot_albedo + (albedo - options_.dot_albedo) * keep;
           }
-          value = albedo * shade(p, n);
+          value = albedo * Irradiance(lights, p, n);
         }
       }
       // Tags: a plate nearer than the face replaces it, blended at its edge.
-      for (size_t k = 0; k < tag_views.size(); ++k) {
-        const TagView& tv = tag_views[k];
-        if (x < tv.x0 || x > tv.x1 || y < tv.y0 || y > tv.y1) continue;
-        const Vec3 n = tv.R.col(2);
-        const double n_t = n.dot(tv.t);
-        const TagPattern& pattern = patterns_[tv.index];
-        const double half = pattern.PlateHalfExtent();
-        auto hit = [&](const Vec3& ray, double* s, Vec2* local) {
-          const double denom = n.dot(ray);
-          if (!(denom > 1e-12)) return false;
-          *s = n_t / denom;
-          const Vec3 q = tv.R.transpose() * (*s * ray - tv.t);
-          *local = q.head<2>() / tv.size;
-          return *s > 0;
-        };
-        double s_centre;
-        Vec2 local_centre;
-        if (!hit(d, &s_centre, &local_centre) || s_centre >= dist) continue;
-        if (std::abs(local_centre.x()) > half + 0.1 || std::abs(local_centre.y()) > half + 0.1) {
-          continue;
-        }
-        // 4 x 4 supersamples, rays interpolated between neighbouring pixels.
-        const int nx = x + 1 < width ? x + 1 : x - 1;
-        const int ny = y + 1 < height ? y + 1 : y - 1;
-        const Vec3 dx = (rays[y * width + nx].cast<double>() - d) * (nx > x ? 1.0 : -1.0);
-        const Vec3 dy = (rays[ny * width + x].cast<double>() - d) * (ny > y ? 1.0 : -1.0);
-        double sum = 0;
-        int on_plate = 0;
-        // Inside one pattern cell: the 16 samples' rays span a
-        // parallelogram, whose central projection onto the plate is the
-        // convex quadrilateral of the 4 corner samples; if these lie in
-        // one (convex) cell, so do all 16, and the loop below would sum 16
-        // equal values.
-        int cell = -2;
-        for (int j = 0; j < 4 && cell != -1; j += 3) {
-          for (int i = 0; i < 4 && cell != -1; i += 3) {
-            double s;
-            Vec2 local;
-            const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
-            const int c = hit(ray, &s, &local) ? pattern.Cell(local.x(), local.y()) : -1;
-            cell = cell == -2 || cell == c ? c : -1;
-            if (i == 0 && j == 0 && c >= 0) sum = 16 * pattern.Sample(local.x(), local.y());
-          }
-        }
-        if (cell >= 0) {
-          on_plate = 16;
-        } else {
-          sum = 0;
-        }
-        for (int j = 0; j < 4 && cell < 0; ++j) {
-          for (int i = 0; i < 4; ++i) {
-            const Vec3 ray = d + (i - 1.5) / 4 * dx + (j - 1.5) / 4 * dy;
-            double s;
-            Vec2 local;
-            if (!hit(ray, &s, &local)) continue;
-            const double white = pattern.Sample(local.x(), local.y());
-            if (white < 0) continue;
-            ++on_plate;
-            sum += white;
-          }
-        }
-        if (on_plate == 0) continue;
-        const double reflectance =
-            options_.tag_black + (options_.tag_white - options_.tag_black) * sum / on_plate;
-        const double tag_value = reflectance * shade(s_centre * d, -n);
-        const double coverage = on_plate / 16.0;
-        value = coverage * tag_value + (1 - coverage) * value;
-        if (std::abs(local_centre.x()) <= half && std::abs(local_centre.y()) <= half) {
-          dist = s_centre;
-          seen = kTagSurface - tv.index;
-        }
-      }
+      CompositeTags(camera, tag_views, lights, x, y, &value, &dist, &seen);
       out_row[x] = static_cast<float>(value);
       if (depth_row) depth_row[x] = static_cast<float>(dist);
       if (surface_row) surface_row[x] = seen;
@@ -813,28 +637,8 @@ ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& sa
   if (options_.defocus_px > 0) {
     cv::GaussianBlur(out.radiance, signal, cv::Size(0, 0), options_.defocus_px);
   }
-  out.image = cv::Mat(cam.height, cam.width, CV_8U);
-  const double read = options_.read_noise, shot = options_.shot_noise;
-  const bool vignetting = options_.vignetting > 0;
-  const std::vector<float>& normals = NormalTable();
-  // Vignetting, noise and quantisation in one pass over the image.
-  ParallelFor(0, cam.height, [&](int64_t y) {
-    const float* in = signal.ptr<float>(static_cast<int>(y));
-    const float* vignette = vignette_[camera].ptr<float>(static_cast<int>(y));
-    uint8_t* row = out.image.ptr<uint8_t>(static_cast<int>(y));
-    for (int x = 0; x < cam.width; ++x) {
-      const float value = vignetting ? in[x] * vignette[x] : in[x];
-      double level = 255.0 * value;
-      if (read > 0 || shot > 0) {
-        // Per-pixel hashed draw: the same noise whatever the thread count.
-        const uint64_t h =
-            Mix(noise_key * 0xD1B54A32D192ED03ULL + static_cast<uint64_t>(y) * cam.width + x);
-        level += std::sqrt(read * read + shot * std::max(level, 0.0)) *
-                 normals[h >> (64 - kNormalTableBits)];
-      }
-      row[x] = static_cast<uint8_t>(std::clamp(level, 0.0, 255.0) + 0.5);
-    }
-  });
+  out.image = RecordSensorImage(signal, options_.vignetting > 0 ? vignette_[camera] : cv::Mat(),
+                                options_.read_noise, options_.shot_noise, noise_key);
   return out;
 }
 

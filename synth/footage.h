@@ -4,11 +4,9 @@
 // the method and what is exact.
 //
 // 1. Visibility: the face's triangles are projected through the
-//    Kannala-Brandt model and subdivided in screen space until every edge's
-//    chord is within `max_edge_error_px` of the projected (curved) edge
-//    (midpoint sagitta; the split decision depends on the edge alone, so
-//    neighbours split shared edges alike and no T-junction cracks appear),
-//    then rasterized with core/raster.h's z-buffer (triangle ids only).
+//    Kannala-Brandt model and subdivided in screen space
+//    (synth/fisheye_subdivision.h), then rasterized with core/raster.h's
+//    z-buffer (triangle ids only).
 // 2. Shading, per pixel: the pixel's exact ray (precomputed bearings) is
 //    intersected with the visible (flat) triangle of the mesh, so the
 //    surface point, its UV and depth are exact, not interpolated through
@@ -19,7 +17,8 @@
 //    shading by one light beside each camera (inverse-square falloff).
 //    Tags: planar plates, ray-intersected exactly and supersampled.
 // 3. Camera: optional motion blur (sub-frame samples), defocus (Gaussian),
-//    vignetting, sensor noise (read + shot noise, seeded per pixel), 8-bit.
+//    vignetting, sensor noise (read + shot noise, seeded per pixel), 8-bit
+//    (synth/sensor_noise.h).
 // Parallel over rows via core/parallel.h; deterministic whatever the thread
 // count.
 #pragma once
@@ -36,6 +35,7 @@
 #include "core/actor.h"
 #include "core/mesh.h"
 #include "core/options.h"
+#include "synth/fisheye_subdivision.h"
 #include "synth/helmet_rig.h"
 #include "synth/tag_render.h"
 
@@ -65,29 +65,6 @@ struct FootageRenderOptions {
   // No noise, vignetting, blur or defocus: the clean image of exact tests.
   void SetClean();
 };
-
-// What the triangle subdivision did for one view.
-struct SubdivisionStats {
-  int64_t input_triangles = 0;   // front-facing triangles projected
-  int64_t split_triangles = 0;   // of which were subdivided
-  int64_t output_triangles = 0;  // triangles rasterized
-  double max_edge_error_px = 0;  // largest midpoint sagitta of a rasterized edge
-};
-
-// Screen-space triangles of the fisheye projection of a mesh.
-struct FisheyeTriangles {
-  MatX3d screen;          // N x 3: x_px, y_px, distance from the camera (mm)
-  MatX3i F;               // T x 3 rows of screen
-  std::vector<int> face;  // T: the mesh triangle each came from
-  SubdivisionStats stats;
-};
-
-// Projects the triangles of (X_cam, F) that face the camera and subdivides
-// them until the chord of every edge is within `max_edge_error_px` of the
-// projected edge's midpoint. X_cam: V x 3 in the camera frame (mm).
-FisheyeTriangles SubdivideForFisheye(const FisheyeCamera& camera,
-                                     const MatX3d& X_cam, const MatX3i& F,
-                                     double max_edge_error_px);
 
 // One instant of the scene.
 struct SceneState {
@@ -190,11 +167,51 @@ class FootageRenderer {
   SurfacePoint LocateFacePlane(const Vec2& st) const;
 
  private:
-  struct Frame;
+  // The face in one camera's frame: vertex positions and smooth normals.
+  struct FaceInCamera {
+    MatX3d X;
+    MatX3d normal;
+  };
+  // A tag plate in one camera's frame, with its image bounding box.
+  struct TagView {
+    Mat3 R;  // cam_from_tag rotation
+    Vec3 t;
+    double size;
+    int index;  // into rig_.tags
+    int x0, y0, x1, y1;
+  };
+  // Shading (step 2 of the header): radiance, and optionally depth and the
+  // surface seen, of every pixel of `camera` for one scene state.
   void ShadeInto(int camera, const SceneState& state, bool paint_dots,
                  cv::Mat* radiance, cv::Mat* depth, cv::Mat* surface,
                  SubdivisionStats* stats) const;
+  FaceInCamera PlaceFace(int camera, const SceneState& state) const;
+  // One light beside each camera of the rig, in `camera`'s frame.
+  std::vector<Vec3> HeadLights(int camera) const;
+  // Lambert irradiance at p with normal n: ambient plus each light with
+  // inverse-square falloff (light_power at 170 mm head-on).
+  double Irradiance(const std::vector<Vec3>& lights, const Vec3& p, const Vec3& n) const;
+  // The tags wholly in front of the lens, with their pixel bounds.
+  std::vector<TagView> TagsInView(int camera) const;
+  // The fraction of skin albedo left by the painted dots at pixel (x, y),
+  // whose ray hits face triangle f (plane p0 p1 p2) at face-plane st: each
+  // dot's anti-aliased coverage from its signed distance in pixels (the
+  // skin distance over its rate of change per pixel step).
+  double DotTransmission(int camera, int x, int y, int f, const Vec3& p0, const Vec3& p1,
+                         const Vec3& p2, const Vec2& st) const;
+  // Blends every tag plate nearer than *dist over the pixel (4 x 4
+  // supersampled at the plate's edge and pattern cells).
+  void CompositeTags(int camera, const std::vector<TagView>& tag_views,
+                     const std::vector<Vec3>& lights, int x, int y, double* value,
+                     double* dist, int* seen) const;
   double Albedo(const Vec2& st) const;
+  // Construction steps: the dots' face-plane centres, metrics and grid
+  // (lo, hi: the face plane's bounds); the triangles' grid; the skin albedo
+  // texture; every pixel's ray and vignetting factor per camera.
+  void IndexDots(const TriMesh& neutral, const Vec2& lo, const Vec2& hi);
+  void IndexTriangles(const Vec2& lo, const Vec2& hi);
+  void MakeAlbedoTexture(uint64_t seed, const Vec2& lo, const Vec2& hi);
+  void PrecomputeRays();
 
   HelmetRig rig_;
   FootageRenderOptions options_;
