@@ -13,6 +13,9 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "blending/correction_smoothing.h"
+#include "blending/shape_prior.h"
+#include "blending/temporal_coherence.h"
 #include "core/error.h"
 #include "core/jaw.h"
 #include "core/logging.h"
@@ -41,6 +44,13 @@ void RobustOptions::Register(OptionFields* fields) {
   fields->Add("smoothing", &smoothing,
               "the correction's smoothing lambda (kernel diagonal = 1); 0: "
               "chosen per sequence by C_p");
+  fields->Add("temporal_window", &temporal_window,
+              "frames of the centred moving average of each bundle's answer "
+              "(step 3b, temporal coherence; <= 1: off)");
+  fields->Add("temporal_tolerance", &temporal_tolerance,
+              "the moving average replaces a bundle's answer where its "
+              "neighbourhood cost exceeds the answer's by at most this many "
+              "noise variances per bundle");
   fields->Add("interpolate", &interpolate,
               "after the correction (part of it: off with correct), "
               "interpolate what is left at each bundle beyond the noise's "
@@ -55,6 +65,14 @@ bool RobustOptions::Check() const {
   }
   if (!(margin >= 0) || !std::isfinite(margin)) {
     spdlog::error("robust options: margin must be >= 0 and finite");
+    return false;
+  }
+  if (temporal_window < 0 || temporal_window > 61) {
+    spdlog::error("robust options: temporal_window must be in [0, 61]");
+    return false;
+  }
+  if (!(temporal_tolerance >= 0) || !std::isfinite(temporal_tolerance)) {
+    spdlog::error("robust options: temporal_tolerance must be >= 0 and finite");
     return false;
   }
   if (!std::isfinite(ridge)) {
@@ -85,47 +103,6 @@ struct RobustSolver::Work {
   }
 };
 
-namespace {
-
-// The correction's candidate widths, in marker spacings (the median
-// distance of a bundle's site to its nearest site), and smoothings (the
-// kernel is 1 on its diagonal): log-spaced from interpolation of exact data
-// to nearly none, then none at all (infinity: the residual is left as it
-// is, and the blend skips the kernel).
-constexpr double kWidthScales[] = {1.0, 2.0};
-
-std::vector<double> LambdaGrid() {
-  std::vector<double> grid;
-  for (int i = -4; i <= 16; ++i) grid.push_back(std::pow(10.0, i / 4.0));
-  grid.push_back(std::numeric_limits<double>::infinity());
-  return grid;
-}
-
-}  // namespace
-
-// The kernel decompositions of one sequence, per width and observed set
-// (frames usually share one set), each computed once. (Outside the anonymous
-// namespace: RobustSolver::Sequence holds one.)
-class BasisCache {
- public:
-  explicit BasisCache(const std::vector<KernelSmoother>& smoothers)
-      : smoothers_(smoothers), bases_(smoothers.size()) {}
-  const KernelSmoother::Basis& Get(size_t width,
-                                   const std::vector<char>& observed) {
-    auto found = bases_[width].find(observed);
-    if (found == bases_[width].end()) {
-      found = bases_[width]
-                  .emplace(observed, smoothers_[width].MakeBasis(observed))
-                  .first;
-    }
-    return found->second;
-  }
-
- private:
-  const std::vector<KernelSmoother>& smoothers_;
-  std::vector<std::map<std::vector<char>, KernelSmoother::Basis>> bases_;
-};
-
 // The state of one sequence solve, handed from step to step.
 struct RobustSolver::Sequence {
   explicit Sequence(const std::vector<KernelSmoother>& smoothers)
@@ -134,7 +111,7 @@ struct RobustSolver::Sequence {
   std::vector<Work> work;  // per frame
   std::vector<int> good;   // frames with both fits, in order
   std::vector<const std::vector<char>*> good_observed;  // their observed sets
-  BasisCache bases;
+  CorrectionBases bases;
   // Per good frame, K: the global fit's residuals at the bundles and their
   // leave-one-out counterparts (step 2b).
   std::vector<std::vector<Vec3>> global_residual, global_loo;
@@ -144,183 +121,6 @@ struct RobustSolver::Sequence {
   double lambda = 0.0;      // and its smoothing
   RobustReport report;
 };
-
-namespace {
-
-// The best (width index, lambda) for the residuals of every good frame
-// (K entries each, over the frame's observed bundles), by C_p for a known
-// sigma, else by generalised cross-validation; *fit receives the pooled fit
-// there.
-std::pair<int, double> ChooseSmoothing(
-    const std::vector<KernelSmoother>& smoothers, BasisCache* cache,
-    const std::vector<const std::vector<char>*>& observed,
-    const std::vector<std::vector<Vec3>>& residuals, bool use_cp,
-    double sigma, KernelFit* best_fit) {
-  const std::vector<double> grid = LambdaGrid();
-  std::pair<int, double> best_choice{0, grid.back()};
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t w = 0; w < smoothers.size(); ++w) {
-    std::vector<const KernelSmoother::Basis*> basis_of;
-    std::vector<Eigen::MatrixXd> z;
-    for (size_t i = 0; i < residuals.size(); ++i) {
-      const KernelSmoother::Basis& basis = cache->Get(w, *observed[i]);
-      basis_of.push_back(&basis);
-      z.push_back(basis.vectors.transpose() *
-                  smoothers[w].Data(basis, residuals[i]));
-    }
-    for (double lambda : grid) {
-      KernelFit fit;
-      for (size_t i = 0; i < residuals.size(); ++i) {
-        fit.Add(smoothers[w].Fit(*basis_of[i], z[i], lambda));
-      }
-      const double score = use_cp ? fit.Cp(sigma) : fit.Gcv();
-      if (score < best) {
-        best = score;
-        best_choice = {static_cast<int>(w), lambda};
-        *best_fit = fit;
-      }
-    }
-  }
-  return best_choice;
-}
-
-// The global fit's ridge per shape, s^2 / tau_n^2: the Gaussian prior
-// w_n ~ N(0, tau_n^2) whose variances maximise the evidence (marginal
-// likelihood) of the sequence's frames, d = B w + noise of variance s^2 per
-// coordinate (empirical Bayes; bounds ignored). At most 32 frames, evenly
-// spaced.
-//   1. One variance for every shape: in the eigenbasis of the normal matrix
-//      H = V diag(s) V^T, c = V^T B^T d has independent coordinates
-//      c_i ~ N(0, s^2 s_i + tau^2 s_i^2); tau^2 by a log-spaced search.
-//      With sigma_floor >= 0 (the noise was estimated, not given), s^2 is
-//      searched too, and the larger of that and sigma_floor is kept: the
-//      global fit's residual need not be marker noise (a noise-free take
-//      whose expressions the dataset holds leaves ~1 um of misfit, which
-//      the prior must not treat as noise), but the one-variance model
-//      underestimates real noise (0.37 mm for 0.5 mm), which the choice's
-//      noise (sigma_floor) does not.
-//   2. From there, one variance per shape (automatic relevance
-//      determination; MacKay 1992's fixed point, pooled over frames):
-//      tau_n^2 = sum_f mu_fn^2 / sum_f (1 - S_f,nn / tau_n^2), mu_f and S_f
-//      the frame's posterior mean and covariance, tau_n^2 kept in
-//      [1e-10, 1e4]. Shapes the sequence does not use get a large ridge,
-//      those it uses a small one.
-// *prior_sigma receives s.
-Eigen::VectorXd ChooseShapeRidges(
-    const BlendshapeSolver& global,
-    const std::vector<const std::vector<char>*>& observed,
-    const std::vector<Eigen::VectorXd>& disp, double sigma,
-    double sigma_floor, int N, double* prior_sigma) {
-  *prior_sigma = 0.0;
-  if (!(sigma > 0) || disp.empty()) return Eigen::VectorXd::Zero(N);
-  const int total = static_cast<int>(disp.size());
-  const int count = std::min(total, 32);
-  // The sampled frames grouped by observed set (frames usually share one):
-  // one normal matrix, its eigendecomposition, B^T d per frame, and the
-  // squared coordinates c_i^2 summed over the frames.
-  struct Group {
-    Eigen::MatrixXd H;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
-    Eigen::MatrixXd c;  // N x frames: B^T d per frame
-    Eigen::VectorXd c2;
-  };
-  std::map<std::vector<char>, Group> by_set;
-  for (int j = 0; j < count; ++j) {
-    const int i = static_cast<int>((static_cast<int64_t>(j) * total) / count);
-    auto found = by_set.find(*observed[i]);
-    if (found == by_set.end()) {
-      found = by_set.emplace(*observed[i], Group()).first;
-      found->second.H = global.Normal(*observed[i]);
-      found->second.eig.compute(found->second.H);
-      HMC_CHECK(found->second.eig.info() == Eigen::Success);
-      found->second.c2 = Eigen::VectorXd::Zero(N);
-    }
-    Group& g = found->second;
-    g.c.conservativeResize(N, g.c.cols() + 1);
-    g.c.col(g.c.cols() - 1) = global.Project(disp[i]);
-    g.c2 += (g.eig.eigenvectors().transpose() * g.c.rightCols<1>()).cwiseAbs2();
-  }
-  std::vector<Group*> groups;
-  for (auto& [set, group] : by_set) groups.push_back(&group);
-  // 1. One variance (and the noise's).
-  auto nll = [&](double noise2, double t2) {
-    double sum = 0.0;
-    for (const Group* g : groups) {
-      const Eigen::VectorXd& s = g->eig.eigenvalues();
-      const double frames = static_cast<double>(g->c.cols());
-      for (int i = 0; i < N; ++i) {
-        const double si = std::max(s[i], 1e-12);
-        const double var = noise2 * si + t2 * si * si;
-        sum += frames * std::log(var) + g->c2[i] / var;
-      }
-    }
-    return sum;
-  };
-  auto tau_grid = [](int e) { return std::pow(10.0, e / 8.0); };
-  double s2 = sigma * sigma;
-  if (sigma_floor >= 0) {
-    double best = std::numeric_limits<double>::infinity(), best_s2 = s2;
-    for (int es = -48; es <= 16; ++es) {
-      const double noise2 = sigma * sigma * std::pow(10.0, es / 8.0);
-      for (int e = -40; e <= 16; ++e) {
-        const double value = nll(noise2, tau_grid(e));
-        if (value < best) {
-          best = value;
-          best_s2 = noise2;
-        }
-      }
-    }
-    s2 = std::max(best_s2, sigma_floor * sigma_floor);
-  }
-  *prior_sigma = std::sqrt(s2);
-  double tau2 = 0.0, best = std::numeric_limits<double>::infinity();
-  for (int e = -40; e <= 16; ++e) {
-    const double value = nll(s2, tau_grid(e));
-    if (value < best) {
-      best = value;
-      tau2 = tau_grid(e);
-    }
-  }
-  // 2. One per shape: 50 fixed-point iterations at most. Correlated shapes
-  // keep trading variance slowly, so it is not run to convergence (200
-  // iterations instead of 50 changed the face error by ~1 %).
-  Eigen::VectorXd t = Eigen::VectorXd::Constant(N, tau2);
-  const int G = static_cast<int>(groups.size());
-  for (int iter = 0; iter < 50; ++iter) {
-    std::vector<Eigen::VectorXd> mu2(G), gamma(G);
-    ParallelFor(0, G, [&](int64_t j) {
-      const Group& g = *groups[j];
-      Eigen::MatrixXd A = g.H / s2;
-      A.diagonal() += t.cwiseInverse();
-      const Eigen::LLT<Eigen::MatrixXd> llt(A);
-      // The frames' posterior means, all at once (one triangular solve of
-      // N x frames, not one per frame).
-      mu2[j] = llt.solve(g.c / s2).cwiseAbs2().rowwise().sum();
-      // diag(A^-1) = squared column norms of L^-1.
-      const Eigen::MatrixXd inverse_l =
-          llt.matrixL().solve(Eigen::MatrixXd::Identity(N, N));
-      gamma[j] = static_cast<double>(g.c.cols()) *
-                 (Eigen::VectorXd::Ones(N) -
-                  inverse_l.colwise().squaredNorm().transpose().cwiseQuotient(t));
-    });
-    Eigen::VectorXd num = Eigen::VectorXd::Zero(N), den = num;
-    for (int j = 0; j < G; ++j) {
-      num += mu2[j];
-      den += gamma[j];
-    }
-    Eigen::VectorXd next(N);
-    for (int n = 0; n < N; ++n) {
-      next[n] = std::clamp(num[n] / std::max(den[n], 1e-12), 1e-10, 1e4);
-    }
-    const double change =
-        (next.array().log() - t.array().log()).abs().maxCoeff();
-    t = next;
-    if (change < 1e-3) break;
-  }
-  return s2 * t.cwiseInverse();
-}
-
-}  // namespace
 
 RobustSolver::RobustSolver(const TriMesh& neutral, const ShapeData& data,
                            const LgiSolver& lgi,
@@ -336,7 +136,7 @@ RobustSolver::RobustSolver(const TriMesh& neutral, const ShapeData& data,
       solve_options_(solve_options),
       options_(options) {
   const double spacing = MedianNearestSiteDistance(data.site_neutral, 10.0);
-  for (double scale : kWidthScales) {
+  for (double scale : kCorrectionWidthScales) {
     smoothers_.emplace_back(data.site_neutral, scale * spacing);
   }
 }
@@ -514,7 +314,7 @@ std::string RobustReport::BriefReport(bool interpolate,
       "marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
       "mm for the shape prior), global ridge per shape {:.3g} (median; "
       "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
-      "choice, {} the global fit",
+      "choice, {} the global fit, {} the temporal average",
       noise_mm, noise_estimated ? "estimated" : "given",
       selection_noise_mm, prior_noise_mm, ridge,
       ridge_min,
@@ -528,7 +328,7 @@ std::string RobustReport::BriefReport(bool interpolate,
           ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
                         bundles_interpolated, threshold_mm)
           : std::string("no interpolation"),
-      bundles_local, bundles_global);
+      bundles_local, bundles_global, bundles_smoothed);
 }
 
 MethodReport RobustReport::ToMethodReport(bool interpolate,
@@ -547,7 +347,8 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
               {"bundles_interpolated",
                static_cast<double>(bundles_interpolated)},
               {"bundles_local", static_cast<double>(bundles_local)},
-              {"bundles_global", static_cast<double>(bundles_global)}};
+              {"bundles_global", static_cast<double>(bundles_global)},
+              {"bundles_smoothed", static_cast<double>(bundles_smoothed)}};
   r.brief = BriefReport(interpolate, good_frames);
   return r;
 }
@@ -642,7 +443,7 @@ void RobustSolver::EstimateNoise(Sequence* seq) const {
     sigma = 0;
     if (!good.empty()) {
       KernelFit fit;
-      ChooseSmoothing(smoothers_, &seq->bases, seq->good_observed, global_residual,
+      ChooseCorrectionSmoothing(smoothers_, &seq->bases, seq->good_observed, global_residual,
                       false, 0.0,
                       &fit);
       sigma = std::sqrt(fit.NoiseVariance());
@@ -712,7 +513,7 @@ void RobustSolver::FitShapePrior(Sequence* seq) const {
     const Eigen::VectorXd ridges =
         options_.ridge >= 0
             ? Eigen::VectorXd::Constant(data_.num_shapes, options_.ridge)
-            : ChooseShapeRidges(
+            : ChooseShapePrior(
                   global_, good_observed, disp, sigma,
                   options_.noise_mm < 0 ? std::sqrt(ChoiceNoiseVariance(*seq)) : -1.0,
                   data_.num_shapes, &report.prior_noise_mm);
@@ -784,6 +585,44 @@ void RobustSolver::ChooseLocalOrGlobal(Sequence* seq) const {
 
 }
 
+void RobustSolver::SmoothAnswersInTime(Sequence* seq) const {
+  if (options_.temporal_window <= 1 || seq->good.size() < 2) return;
+  const int K = data_.num_bundles;
+  const std::vector<int>& good = seq->good;
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> weights(
+      good.size());
+  std::vector<TemporalFrame> frames(good.size());
+  for (size_t i = 0; i < good.size(); ++i) {
+    const Work& wk = seq->work[good[i]];
+    const FrameSolve& fs = seq->result.frames[good[i]];
+    weights[i].resize(K);
+    for (int k = 0; k < K; ++k) weights[i][k] = fs.bundles[k].weights;
+    frames[i] = {&weights[i], &wk.disp, &wk.observed};
+  }
+  std::vector<std::vector<int>> neighbours(K);
+  for (int k = 0; k < K; ++k) neighbours[k] = lgi_.Neighbours(k);
+  TemporalCoherenceOptions options;
+  options.window = options_.temporal_window;
+  options.tolerance = options_.temporal_tolerance;
+  options.tie_mm2 = solve_options_.tie_mm2;
+  options.noise2 = seq->sel_sigma2;
+  std::vector<std::vector<char>> changed;
+  seq->report.bundles_smoothed = hmc::SmoothAnswersInTime(
+      data_, neighbours, good, options, &frames, &changed);
+  for (size_t i = 0; i < good.size(); ++i) {
+    Work& wk = seq->work[good[i]];
+    FrameSolve& fs = seq->result.frames[good[i]];
+    for (int k = 0; k < K; ++k) {
+      if (!changed[i][k]) continue;
+      BundleSolve& b = fs.bundles[k];
+      b.weights = std::move(weights[i][k]);
+      b.simplex = -1;
+      b.corner_shapes.clear();
+      wk.use_global[k] = 0;
+    }
+  }
+}
+
 // Step 5's width and smoothing, from the blend's residuals at the bundles
 // (options_.correct, some good frame): sets seq->width_index and
 // seq->lambda (-1 and 0: no correction) and each corrected frame's
@@ -796,7 +635,7 @@ void RobustSolver::ChooseCorrection(Sequence* seq) {
       seq->good_observed;
   const SolveResult& result = seq->result;
   RobustReport& report = seq->report;
-  BasisCache& bases = seq->bases;
+  CorrectionBases& bases = seq->bases;
   const double sel_sigma2 = seq->sel_sigma2;
   int& width_index = seq->width_index;
   double& lambda = seq->lambda;
@@ -849,11 +688,11 @@ void RobustSolver::ChooseCorrection(Sequence* seq) {
   KernelFit fit;
   double noise = options_.noise_mm;
   if (noise < 0) {
-    ChooseSmoothing(smoothers_, &bases, good_observed, residuals, false,
+    ChooseCorrectionSmoothing(smoothers_, &bases, good_observed, residuals, false,
                     0.0, &fit);
     noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
   }
-  std::tie(width_index, lambda) = ChooseSmoothing(
+  std::tie(width_index, lambda) = ChooseCorrectionSmoothing(
       smoothers_, &bases, good_observed, residuals, true, noise, &fit);
   if (options_.smoothing > 0) lambda = options_.smoothing;
   if (std::isinf(lambda)) {
@@ -974,6 +813,7 @@ SolveResult RobustSolver::SolveSequence(
   EstimateNoise(&seq);                                 // step 2
   FitShapePrior(&seq);                                 // step 2b
   ChooseLocalOrGlobal(&seq);                           // step 3
+  SmoothAnswersInTime(&seq);                           // step 3b
   if (options_.correct && !seq.good.empty()) {
     ChooseCorrection(&seq);  // step 5's width and smoothing
     if (options_.interpolate) InterpolateBeyondThreshold(&seq);

@@ -44,6 +44,12 @@
 //      both are exact (a dataset shape: lgi reproduces it everywhere, the
 //      global fit only at the bundles); under noise, only local structure
 //      larger than the noise switches to lgi.
+//   3b. Temporal coherence (blending/temporal_coherence.h): each bundle's
+//      answer of step 3 replaced by its centred moving average over the
+//      neighbouring frames where it is not exact and the average explains
+//      its neighbourhood as well as the noise allows (within
+//      temporal_tolerance noise variances per bundle): the hard per-bundle switches between lgi and the global fit,
+//      and between lgi's candidates, no longer flicker.
 //   4. Natural-neighbour blend of the per-bundle weights: x*(v) = x0(v) +
 //      sum_k lambda_k(v) (global_k ? sum_n w_n b*_n(v) : sum_n u_kn b*_n(v)).
 //   5. The blend's residuals at the bundles (measured on the skinned
@@ -100,6 +106,12 @@ struct RobustOptions {
   bool correct = true;     // kernel correction of the residual
   double smoothing = 0.0;  // the correction's lambda (> 0: fixed; 0: chosen
                            // from the data)
+  int temporal_window = 0;  // step 3b: frames of the moving average of each
+                            // bundle's answer (<= 1: off, the default:
+                            // docs/method.md "Temporal coherence")
+  double temporal_tolerance = 0.5;  // step 3b: the average may explain the
+                                    // neighbourhood this many noise
+                                    // variances per bundle worse
   bool interpolate = true; // then interpolate, with the natural-neighbour
                            // weights, what is left at each bundle beyond
                            // the noise's threshold (step 5)
@@ -127,6 +139,8 @@ struct RobustReport {
   int64_t bundles_interpolated = 0;  // bundle-frames left beyond it
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice
   int64_t bundles_global = 0;
+  int64_t bundles_smoothed = 0;  // bundle-frames that took the temporal
+                                 // average (step 3b)
 
   // One line, as `hmc solve` logs it.
   std::string BriefReport(bool interpolate, int good_frames) const;
@@ -171,6 +185,9 @@ class RobustSolver {
   void FitShapePrior(Sequence* seq) const;
   // Step 3: per bundle, lgi's choice or the global weights.
   void ChooseLocalOrGlobal(Sequence* seq) const;
+  // Step 3b: each bundle's answer averaged over neighbouring frames where
+  // the average still explains the frame (blending/temporal_coherence.h).
+  void SmoothAnswersInTime(Sequence* seq) const;
   // Step 5: the correction's width and smoothing (caches the kernel).
   void ChooseCorrection(Sequence* seq);
   // Step 5: what the correction leaves beyond the threshold, interpolated.

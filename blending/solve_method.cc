@@ -28,7 +28,7 @@ bool MethodOptions::Check() const {
 const std::vector<std::string>& SolveMethodNames() {
   static const std::vector<std::string> names = {
       "robust", "lgi", "blendshape", "blendshape-bounded", "interp",
-      "lgi-rbf"};
+      "lgi-rbf", "robust-global"};
   return names;
 }
 
@@ -99,7 +99,8 @@ const ShapeData& MethodSolvers::data() {
 void MethodSolvers::Prepare(const std::string& method) {
   CheckSolveMethod(method, "solve method");
   const bool needs_lgi =
-      method == "lgi" || method == "lgi-rbf" || method == "robust";
+      method == "lgi" || method == "lgi-rbf" || method == "robust" ||
+      method == "robust-global";
   if (needs_lgi && !lgi_model_) {
     lgi_model_ = std::make_unique<LgiModel>(
         LoadOrBuildLgiModel(actor_, options_.build.index, options_.build.nn,
@@ -121,7 +122,8 @@ void MethodSolvers::Prepare(const std::string& method) {
     blendshape_ = std::make_unique<BlendshapeSolver>(
         actor_.neutral, data(), options_.blendshape);
   }
-  if ((method == "blendshape-bounded" || method == "robust") &&
+  if ((method == "blendshape-bounded" || method == "robust" ||
+       method == "robust-global") &&
       !blendshape_bounded_) {
     BlendshapeOptions bounded = options_.blendshape;
     bounded.bounded = true;
@@ -136,6 +138,13 @@ void MethodSolvers::Prepare(const std::string& method) {
     robust_ = std::make_unique<RobustSolver>(
         actor_.neutral, lgi_model_->data, *lgi_, lgi_model_->nn,
         *blendshape_bounded_, options_.solve, options_.robust);
+  }
+  if (method == "robust-global" && !robust_global_) {
+    RobustOptions global = options_.robust;
+    global.local = false;
+    robust_global_ = std::make_unique<RobustSolver>(
+        actor_.neutral, lgi_model_->data, *lgi_, lgi_model_->nn,
+        *blendshape_bounded_, options_.solve, global);
   }
 }
 
@@ -167,6 +176,9 @@ SolveResult MethodSolvers::Solve(const std::string& method,
   }
   if (method == "robust") {
     return robust_->SolveSequence(frames, jaw, frame_errors);
+  }
+  if (method == "robust-global") {
+    return robust_global_->SolveSequence(frames, jaw, frame_errors);
   }
   if (method == "blendshape") {
     return blendshape_->SolveSequence(frames, jaw, frame_errors);

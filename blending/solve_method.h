@@ -8,7 +8,9 @@
 // Methods: "robust" (blending/robust_solver.h, the default of `hmc solve`),
 // "lgi" (blending/lgi_solver.h), "blendshape" and
 // "blendshape-bounded" (blending/baseline_blendshape.h), "interp"
-// (blending/baseline_interp.h), "lgi-rbf" (blending/lgi_rbf.h).
+// (blending/baseline_interp.h), "lgi-rbf" (blending/lgi_rbf.h),
+// "robust-global" (robust without the local data, robust.local false: what
+// `hmc experiment` measures the local data's gain against).
 //
 // MethodSolvers holds the per-actor precomputation (unskinned shapes, the
 // lgi index and natural-neighbour weights, the baselines' normal matrices
@@ -98,6 +100,7 @@ class MethodSolvers {
   std::unique_ptr<BlendshapeSolver> blendshape_bounded_;
   std::unique_ptr<InterpSolver> interp_;
   std::unique_ptr<RobustSolver> robust_;
+  std::unique_ptr<RobustSolver> robust_global_;  // robust.local false
   // The last lgi solve, for lgi-rbf on the same inputs.
   struct LgiMemo {
     std::vector<BundleFrame> frames;

@@ -149,24 +149,42 @@ std::string ResultsMarkdown(const std::string& actor_name, int seed,
       "recon| over the face (uniform Laplacian). bundle: mean residual at "
       "the input bundles. flicker: mean |e(t+1) - 2e(t) + e(t-1)| over the "
       "face (mm/frame^2; n/a for the dataset, whose frames are not a "
-      "sequence). ms/frame: wall time of the sequence solve / frames.\n\n",
+      "sequence). ms/frame: wall time of the sequence solve / frames. "
+      "local: share of the observed bundles (all frames) that took the "
+      "local (lgi) answer; local gain: how much lower robust's face mean "
+      "is than robust-global's (robust without the local data) on the same "
+      "material, in % of robust-global's.\n\n",
       actor_name, seed);
   md +=
       "| material | noise (mm) | method | face mean | face rms | face p95 | "
-      "face max | all mean | detail | bundle | flicker | ms/frame | bad |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "face max | all mean | detail | bundle | flicker | local | local gain "
+      "| ms/frame | bad |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ExperimentRow& r : rows) {
     const SequenceMetrics& m = r.metrics;
+    const std::string local =
+        r.local_share < 0 ? "" : fmt::format("{:.0f} %", 100 * r.local_share);
+    std::string gain;
+    if (r.method == "robust") {
+      for (const ExperimentRow& g : rows) {
+        if (g.method == "robust-global" && g.material == r.material &&
+            g.metrics.face.mean > 0) {
+          gain = fmt::format(
+              "{:+.1f} %",
+              100 * (g.metrics.face.mean - m.face.mean) / g.metrics.face.mean);
+        }
+      }
+    }
     const std::string flicker =
         r.kind == "dataset" || m.flicker_face.frames_used == 0
             ? "n/a"
             : fmt::format("{:.4f}", m.flicker_face.mean);
     md += fmt::format(
         "| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {:.3f} | {:.4f} | "
-        "{:.5f} | {:.2e} | {} | {:.1f} | {} |\n",
+        "{:.5f} | {:.2e} | {} | {} | {} | {:.1f} | {} |\n",
         r.kind, NoiseLabel(r.noise_mm), r.method, m.face.mean, m.face.rms,
         m.face.p95, m.face.max, m.all.mean, m.detail_face, m.bundle.mean,
-        flicker, r.solve_ms_per_frame, r.bad_frames);
+        flicker, local, gain, r.solve_ms_per_frame, r.bad_frames);
   }
   md += fmt::format("\nTotal time: {:.1f} s.\n", seconds);
   return md;
@@ -305,6 +323,16 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
         row.frames = F;
         row.bad_frames = result.summary.bad_frames;
         row.solve_ms_per_frame = 1000.0 * seconds / std::max(F, 1);
+        {
+          double local = -1, global = -1;
+          for (const auto& [name, value] : result.report.values) {
+            if (name == "bundles_local") local = value;
+            if (name == "bundles_global") global = value;
+          }
+          if (local >= 0 && global >= 0 && local + global > 0) {
+            row.local_share = local / (local + global);
+          }
+        }
         row.metrics =
             evaluator.Evaluate(truth_meshes, result.meshes, numbers, &bundles);
         row.metrics.per_frame.clear();
@@ -359,6 +387,7 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
          {"frames", r.frames},
          {"bad_frames", r.bad_frames},
          {"solve_ms_per_frame", r.solve_ms_per_frame}});
+    if (r.local_share >= 0) table.back()["local_share"] = r.local_share;
     table.back().update(PooledMetricsJson(m));
   }
   const nlohmann::json report = {

@@ -39,11 +39,14 @@ struct ExperimentOptions {
                                     "heldout", "mixed"};  // material kinds
       // (synth/truth_frames.h); heldout and mixed are skipped for an actor
       // without held-out units
-  std::vector<double> noise_mm = {0, 0.5, 1};  // marker noise levels: std
-                                               // per bundle coordinate (mm)
+  std::vector<double> noise_mm = {0, 0.1, 0.2, 0.5, 1};  // marker noise
+      // levels: std per bundle coordinate (mm)
   std::vector<std::string> methods = {"robust",     "lgi",
                                       "blendshape", "blendshape-bounded",
-                                      "interp",     "lgi-rbf"};
+                                      "interp",     "lgi-rbf",
+                                      "robust-global"};
+      // robust-global (robust without the local data) gives the table's
+      // "local gain" column
   int default_frames = 30;  // frames of a kind not listed in `frames`
   std::vector<std::string> frames = {"combos:30", "performance:60",
                                      "heldout:30", "mixed:30"};
@@ -71,6 +74,9 @@ struct ExperimentRow {
   int frames = 0;
   int bad_frames = 0;
   double solve_ms_per_frame = 0;
+  // The share of observed bundle-frames that took the local (lgi) answer,
+  // from the method's report (robust); < 0: the method has none.
+  double local_share = -1;
   SequenceMetrics metrics;  // without per_frame
 };
 

@@ -28,7 +28,8 @@ FaceModel::FaceModel(const SynthActorOptions& options)
           DrawFaceProportions(static_cast<uint64_t>(options.seed),
                               options.proportion_jitter),
           options.grid_u, options.grid_v)),
-      catalog_(BuildUnitCatalog(face_.proportions, options.detail_scale)) {
+      catalog_(BuildUnitCatalog(face_.proportions, options.detail_scale)),
+      linear_(options.rig == "linear") {
   const int num_vertices = NumVertices();
   const MatX3d normals = VertexNormals(face_.mesh.V, face_.mesh.F);
   const int num_terms = static_cast<int>(catalog_.terms.size());
@@ -59,9 +60,58 @@ FaceModel::FaceModel(const SynthActorOptions& options)
       ++e;
     }
   }
+  if (linear_) BuildLinearRig();
+}
+
+void FaceModel::BuildLinearRig() {
+  const int num_vertices = NumVertices(), num_units = NumUnits();
+  std::vector<std::vector<std::pair<int, Vec3>>> per_vertex(num_vertices);
+  for (int k = 0; k < num_units; ++k) {
+    Eigen::VectorXd a = ZeroActivations();
+    a[k] = 1.0;
+    const MatX3d extreme =
+        Skin(face_.jaw_rig, catalog_.jaw_pose(a), Displace(a));
+    for (int v = 0; v < num_vertices; ++v) {
+      const Vec3 d = (extreme.row(v) - face_.mesh.V.row(v)).transpose();
+      if (d.squaredNorm() > 1e-16) per_vertex[v].emplace_back(k, d);
+    }
+  }
+  unit_offsets_.assign(num_vertices + 1, 0);
+  for (int v = 0; v < num_vertices; ++v) {
+    unit_offsets_[v + 1] =
+        unit_offsets_[v] + static_cast<int64_t>(per_vertex[v].size());
+  }
+  unit_.resize(unit_offsets_.back());
+  unit_field_.resize(unit_offsets_.back());
+  for (int v = 0; v < num_vertices; ++v) {
+    int64_t e = unit_offsets_[v];
+    for (const auto& [k, d] : per_vertex[v]) {
+      unit_[e] = k;
+      unit_field_[e] = d;
+      ++e;
+    }
+  }
+}
+
+MatX3d FaceModel::DisplaceLinear(const Eigen::VectorXd& a_in) const {
+  const Eigen::VectorXd a = Clamped(a_in, NumUnits());
+  const MatX3d& x0 = face_.mesh.V;
+  MatX3d out(x0.rows(), 3);
+  ParallelFor(0, x0.rows(), [&](int64_t v) {
+    Vec3 d = Vec3::Zero();
+    for (int64_t e = unit_offsets_[v]; e < unit_offsets_[v + 1]; ++e) {
+      d += a[unit_[e]] * unit_field_[e];
+    }
+    out.row(v) = x0.row(v) + d.transpose();
+  }, 1024);
+  return out;
 }
 
 JawPose FaceModel::JawPoseOf(const Eigen::VectorXd& a) const {
+  if (linear_) {
+    Clamped(a, NumUnits());  // the same size check
+    return JawPose();
+  }
   return catalog_.jaw_pose(Clamped(a, NumUnits()));
 }
 
@@ -85,10 +135,11 @@ MatX3d FaceModel::Displace(const Eigen::VectorXd& a_in) const {
 }
 
 MatX3d FaceModel::EvaluateUnskinned(const Eigen::VectorXd& a) const {
-  return Displace(a);
+  return linear_ ? DisplaceLinear(a) : Displace(a);
 }
 
 MatX3d FaceModel::Evaluate(const Eigen::VectorXd& a) const {
+  if (linear_) return DisplaceLinear(a);
   return Skin(face_.jaw_rig, JawPoseOf(a), Displace(a));
 }
 

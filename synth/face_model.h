@@ -8,6 +8,13 @@
 // the summed displacement, and linear blend skinning by the jaw rig
 // (core/jaw.h). The fields are precomputed once, stored sparse per vertex,
 // so one evaluation is a short gather per vertex (parallel over vertices).
+//
+// With SynthActorOptions::rig "linear" the model is instead a purely linear
+// rig, the regime most production rigs live in (docs/synthetic.md, "Linear
+// rig"): x(a) = x0 + sum_k a_k E_k, E_k = the generator's unit k alone at
+// activation 1 (jaw skinning included) minus x0. No activation-dependent
+// detail, no interactions, no saturation, no jaw rig (JawPoseOf is zero):
+// in-betweens lie on the line and combinations are exactly sums.
 #pragma once
 
 #include <string>
@@ -28,7 +35,11 @@ class FaceModel {
 
   const FaceMesh& face() const { return face_; }
   const TriMesh& neutral() const { return face_.mesh; }
+  // The generator's jaw rig (the linear rig still builds its extremes with
+  // it); has_jaw_rig() says whether evaluations are skinned with it.
   const JawRig& jaw_rig() const { return face_.jaw_rig; }
+  bool has_jaw_rig() const { return !linear_; }
+  bool linear() const { return linear_; }
   int NumVertices() const { return face_.mesh.NumVertices(); }
 
   int NumUnits() const { return static_cast<int>(catalog_.units.size()); }
@@ -53,6 +64,10 @@ class FaceModel {
 
  private:
   MatX3d Displace(const Eigen::VectorXd& a) const;
+  MatX3d DisplaceLinear(const Eigen::VectorXd& a) const;
+  // The linear rig's extremes, sparse per vertex as the terms' fields:
+  // entries [unit_offsets_[v], unit_offsets_[v+1]) of unit_ and unit_field_.
+  void BuildLinearRig();
 
   FaceMesh face_;
   UnitCatalog catalog_;
@@ -61,6 +76,10 @@ class FaceModel {
   std::vector<int64_t> offsets_;
   std::vector<int> term_;
   std::vector<Vec3> field_;
+  bool linear_ = false;
+  std::vector<int64_t> unit_offsets_;
+  std::vector<int> unit_;
+  std::vector<Vec3> unit_field_;
 };
 
 }  // namespace hmc

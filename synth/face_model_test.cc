@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <set>
 #include <vector>
 
@@ -322,6 +323,55 @@ TEST(FaceModelTest, DeterministicBySeed) {
   act.setConstant(0.35);
   EXPECT_EQ(a.Evaluate(act), b.Evaluate(act));
   EXPECT_GT((a.Evaluate(act) - c.Evaluate(act)).cwiseAbs().maxCoeff(), 0.5);
+}
+
+// The linear rig (docs/synthetic.md, "Linear rig"): each unit's extreme is
+// the generator's, in-betweens lie on the line and any combination is the
+// sum of its units' scaled extremes; no jaw rig, the jaw pose is zero.
+TEST(FaceModelTest, LinearRigIsLinearInTheActivations) {
+  for (int seed : {1, 2, 3}) {
+    SynthActorOptions options = SmallOptions(seed);
+    const FaceModel generator(options);
+    options.rig = "linear";
+    const FaceModel linear(options);
+    EXPECT_TRUE(linear.linear());
+    EXPECT_FALSE(linear.has_jaw_rig());
+    EXPECT_TRUE(generator.has_jaw_rig());
+    const MatX3d& x0 = linear.neutral().V;
+    EXPECT_EQ(MaxRowNorm(linear.Evaluate(linear.ZeroActivations()) - x0), 0.0);
+    const int K = linear.NumUnits();
+    std::vector<MatX3d> extreme(K);
+    double nonlinearity = 0.0;  // the generator's in-between off the line
+    for (int k = 0; k < K; ++k) {
+      Eigen::VectorXd a = linear.ZeroActivations();
+      a[k] = 1.0;
+      extreme[k] = linear.Evaluate(a) - x0;
+      EXPECT_LT(MaxRowNorm(extreme[k] - (generator.Evaluate(a) - x0)), 1e-12)
+          << linear.units()[k].name;
+      EXPECT_GT(MaxRowNorm(extreme[k]), 0.1) << linear.units()[k].name;
+      a[k] = 0.5;
+      EXPECT_LT(MaxRowNorm(linear.Evaluate(a) - x0 - 0.5 * extreme[k]), 1e-12);
+      EXPECT_TRUE(linear.JawPoseOf(a).IsZero());
+      nonlinearity = std::max(
+          nonlinearity,
+          MaxRowNorm(generator.Evaluate(a) - x0 - 0.5 * extreme[k]));
+    }
+    // The test can fail: the generator is not linear.
+    EXPECT_GT(nonlinearity, 0.1);
+    // Random combinations (out-of-range activations clamped) are sums.
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-0.2, 1.2);
+    for (int trial = 0; trial < 5; ++trial) {
+      Eigen::VectorXd a(K);
+      for (int k = 0; k < K; ++k) a[k] = u(rng);
+      MatX3d sum = MatX3d::Zero(x0.rows(), 3);
+      for (int k = 0; k < K; ++k) {
+        sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
+      }
+      EXPECT_LT(MaxRowNorm(linear.Evaluate(a) - x0 - sum), 1e-9);
+      EXPECT_LT(MaxRowNorm(linear.EvaluateUnskinned(a) - x0 - sum), 1e-9);
+    }
+  }
 }
 
 }  // namespace

@@ -28,6 +28,10 @@ void SynthActorOptions::Register(OptionFields* fields) {
   fields->Add("dataset_inbetweens", &dataset_inbetweens,
               "add in-between shapes (50%, some 25/75%)");
   fields->Add("dataset_combos", &dataset_combos, "add the combination shapes");
+  fields->Add("rig", &rig,
+              "generator: the nonlinear generator with its jaw rig; linear: "
+              "each unit's extreme as a fixed displacement, summed (no "
+              "activation-dependent detail, no jaw rig)");
   fields->Add("holdout", &holdout,
               "action units held out of the dataset (drawn from the seed, "
               "never a jaw unit)");
@@ -81,6 +85,9 @@ bool SynthActorOptions::Check() const {
     fail("marker_jitter_mm must be in [0, 3]");
   }
   if (name.empty()) fail("name must not be empty");
+  if (rig != "generator" && rig != "linear") {
+    fail("rig must be generator or linear, not '" + rig + "'");
+  }
   if (holdout < 0 || holdout > kMaxHoldout) {
     fail(fmt::format("holdout must be in [0, {}]", kMaxHoldout));
   }
@@ -323,7 +330,7 @@ Actor SynthesizeActorFromModel(const FaceModel& model,
   actor.name = options.name;
   actor.units = "mm";
   actor.neutral = model.neutral();
-  actor.jaw_rig = model.jaw_rig();
+  if (model.has_jaw_rig()) actor.jaw_rig = model.jaw_rig();
   actor.markers = LayoutMarkers(model.face(), static_cast<uint64_t>(options.seed),
                                 options.marker_jitter_mm);
   const std::vector<DatasetEntry> plan = PlanDataset(model, options);

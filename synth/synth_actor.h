@@ -28,6 +28,7 @@ struct SynthActorOptions {
   double marker_jitter_mm = 0.8;    // std of the seeded marker placement jitter (mm)
   bool dataset_inbetweens = true;   // add 50% (and some 25/75%) in-between shapes
   bool dataset_combos = true;       // add the combination shapes
+  std::string rig = "generator";  // "generator" (nonlinear detail, jaw rig) or "linear" (extremes as fixed displacements, no jaw rig)
   int holdout = 0;                  // action units held out of the dataset (drawn from the seed, never a jaw unit)
   std::string holdout_units;        // comma-separated unit names held out (overrides the draw; synth.yaml records the resolved list)
 

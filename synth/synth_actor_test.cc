@@ -76,6 +76,54 @@ TEST(SynthActorTest, ShapesAreTheModelsEvaluations) {
   }
 }
 
+// A linear-rig actor: no jaw rig, zero jaw poses, in-betweens on the line
+// to their extreme and combinations the sums of their units' extremes.
+TEST(SynthActorTest, LinearRigDatasetIsLinear) {
+  for (int seed : {1, 2}) {
+    SynthActorOptions options = Small(seed);
+    options.rig = "linear";
+    ASSERT_TRUE(options.Check());
+    const FaceModel model(options);
+    const Actor actor = SynthesizeActorFromModel(model, options);
+    EXPECT_NO_THROW(ValidateActor(actor, "synth"));
+    EXPECT_FALSE(actor.jaw_rig.has_value());
+    const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+    ASSERT_EQ(plan.size(), actor.shapes.size());
+    // The extremes by unit.
+    std::vector<int> extreme(model.NumUnits(), -1);
+    for (size_t n = 0; n < plan.size(); ++n) {
+      EXPECT_TRUE(actor.shapes[n].jaw.IsZero()) << actor.shapes[n].name;
+      const Eigen::VectorXd& a = plan[n].activations;
+      if ((a.array() != 0).count() == 1 && a.maxCoeff() == 1.0) {
+        int k = 0;
+        a.maxCoeff(&k);
+        extreme[k] = static_cast<int>(n);
+      }
+    }
+    int inbetweens = 0, combos = 0;
+    for (size_t n = 0; n < plan.size(); ++n) {
+      const Eigen::VectorXd& a = plan[n].activations;
+      MatX3d sum = MatX3d::Zero(actor.NumVertices(), 3);
+      for (int k = 0; k < model.NumUnits(); ++k) {
+        if (a[k] == 0) continue;
+        ASSERT_GE(extreme[k], 0);
+        sum += a[k] * actor.shapes[extreme[k]].displacement;
+      }
+      EXPECT_LT((actor.shapes[n].displacement - sum).cwiseAbs().maxCoeff(),
+                1e-9)
+          << actor.shapes[n].name;
+      const int active = static_cast<int>((a.array() != 0).count());
+      if (active == 1 && a.maxCoeff() < 1.0) ++inbetweens;
+      if (active >= 2) ++combos;
+    }
+    EXPECT_GE(inbetweens, 20);
+    EXPECT_GE(combos, 20);
+  }
+  SynthActorOptions bad = Small();
+  bad.rig = "quadratic";
+  EXPECT_FALSE(bad.Check());
+}
+
 TEST(SynthActorTest, DeterministicBySeed) {
   const Actor a = SynthesizeActor(Small(5)), b = SynthesizeActor(Small(5));
   const Actor c = SynthesizeActor(Small(6));

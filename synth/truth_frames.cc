@@ -192,6 +192,28 @@ std::vector<Eigen::VectorXd> Performance(const FaceModel& model,
     event.peak = rng.Uniform(0.3, 1.0);
     events.push_back(event);
   }
+  // On an actor with held-out units, as in a real take, expressions the
+  // dataset lacks too: one event on a held-out (non-jaw) unit per two
+  // seconds (at least one), placed to be seen whole when the take allows.
+  // Drawn after the dataset events, so those are the same as without.
+  std::vector<int> held_units;
+  for (int k : held) {
+    if (!model.units()[k].drives_jaw) held_units.push_back(k);
+  }
+  if (!held_units.empty()) {
+    const int num_held = std::max(1, static_cast<int>(std::ceil(duration / 2)));
+    for (int e = 0; e < num_held; ++e) {
+      Event event;
+      event.unit = held_units[rng.Index(static_cast<int>(held_units.size()))];
+      event.attack = rng.Uniform(0.25, 0.6);
+      event.hold = rng.Uniform(0.2, 1.2);
+      event.release = rng.Uniform(0.25, 0.7);
+      event.start = rng.Uniform(
+          0.0, std::max(0.0, duration - event.attack - event.hold));
+      event.peak = rng.Uniform(0.3, 1.0);
+      events.push_back(event);
+    }
+  }
   // Speech: stretches with the jaw and lips moving at syllable rate.
   struct Speech {
     double start, length, rate_hz, phase;

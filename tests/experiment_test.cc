@@ -58,7 +58,8 @@ TEST_P(ExperimentCli, TableIsCompleteAndAgreesWithEvalAndSolve) {
                                           "heldout"};
   const std::vector<std::string> noises = {"0", "0.5"};
   const std::vector<std::string> methods = {
-      "robust", "lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf"};
+      "robust", "lgi", "blendshape", "blendshape-bounded", "interp", "lgi-rbf",
+      "robust-global"};
   r = RunHmc(fmt::format("-q experiment --actor '{}' --out '{}' --seed {} "
                          "--kinds dataset,combos,performance,heldout "
                          "--noise_mm 0,0.5 "
@@ -91,6 +92,17 @@ TEST_P(ExperimentCli, TableIsCompleteAndAgreesWithEvalAndSolve) {
         ASSERT_NE(it, by_key.end()) << material << " " << method;
         EXPECT_EQ(it->second.at("frames").get<int>(), frames.at(kind));
         EXPECT_EQ(it->second.at("bad_frames").get<int>(), 0);
+        // The local data's share: robust's in [0, 1], none without them.
+        if (method == "robust" || method == "robust-global") {
+          const double share = it->second.at("local_share").get<double>();
+          EXPECT_GE(share, 0.0) << material;
+          EXPECT_LE(share, 1.0) << material;
+          if (method == "robust-global") {
+            EXPECT_EQ(share, 0.0) << material;
+          }
+        } else {
+          EXPECT_FALSE(it->second.contains("local_share")) << material << method;
+        }
         EXPECT_NE(md.find(fmt::format("| {} | {} | {} |", kind, noise, method)),
                   std::string::npos)
             << material << " " << method;

@@ -1,0 +1,108 @@
+#include "blending/temporal_coherence.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "core/parallel.h"
+
+namespace hmc {
+namespace {
+
+// sum_{j in {k} + nbhd(k), observed} |d_j - B_j w|^2 for dense weights w
+// given by their non-zero entries; *count: the bundles summed.
+double NeighbourhoodCost(const ShapeData& data, const std::vector<int>& nbhd,
+                         int k, const TemporalFrame& frame,
+                         const std::vector<std::pair<int, double>>& w,
+                         int* count) {
+  double cost = 0.0;
+  *count = 0;
+  auto add = [&](int j) {
+    if (!(*frame.observed)[j]) return;
+    Vec3 x = Vec3::Zero();
+    for (const auto& [n, wn] : w) x += wn * data.SiteDisplacement(n, j);
+    cost += ((*frame.disp)[j] - x).squaredNorm();
+    ++*count;
+  };
+  add(k);
+  for (int j : nbhd) add(j);
+  return cost;
+}
+
+}  // namespace
+
+int64_t SmoothAnswersInTime(const ShapeData& data,
+                            const std::vector<std::vector<int>>& neighbours,
+                            const std::vector<int>& frame_numbers,
+                            const TemporalCoherenceOptions& options,
+                            std::vector<TemporalFrame>* frames,
+                            std::vector<std::vector<char>>* changed) {
+  const int F = static_cast<int>(frames->size());
+  const int K = data.num_bundles, N = data.num_shapes;
+  HMC_CHECK(static_cast<int>(frame_numbers.size()) == F);
+  HMC_CHECK(static_cast<int>(neighbours.size()) == K);
+  if (changed) changed->assign(F, std::vector<char>(K, 0));
+  if (options.window <= 1 || F < 2) return 0;
+  const int h = options.window / 2;
+  // The answers as they were (the average reads these, not its own output).
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> original(F);
+  for (int f = 0; f < F; ++f) original[f] = *(*frames)[f].weights;
+  std::vector<int64_t> taken(K, 0);
+  ParallelFor(0, K, [&](int64_t k64) {
+    const int k = static_cast<int>(k64);
+    std::vector<double> dense(N, 0.0);
+    std::vector<int> touched;
+    for (int f = 0; f < F; ++f) {
+      const TemporalFrame& frame = (*frames)[f];
+      if (!(*frame.observed)[k]) continue;
+      const std::vector<std::pair<int, double>>& own = original[f][k];
+      int m = 0;
+      const double cost = NeighbourhoodCost(data, neighbours[k], k, frame, own, &m);
+      const double tie = m * options.tie_mm2;
+      if (cost <= tie) continue;  // exact: kept
+      // The triangular average over the window's frames that are
+      // consecutive with f and observe the bundle.
+      double total = 0.0;
+      touched.clear();
+      auto add = [&](int g, double t) {
+        for (const auto& [n, w] : original[g][k]) {
+          if (dense[n] == 0.0) touched.push_back(n);
+          dense[n] += t * w;
+          if (dense[n] == 0.0) dense[n] = 1e-300;  // keep it listed
+        }
+        total += t;
+      };
+      add(f, h + 1.0);
+      for (int dir : {-1, 1}) {
+        for (int s = 1; s <= h; ++s) {
+          const int g = f + dir * s;
+          if (g < 0 || g >= F) break;
+          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
+          if (!(*(*frames)[g].observed)[k]) break;
+          add(g, h + 1.0 - s);
+        }
+      }
+      std::sort(touched.begin(), touched.end());
+      std::vector<std::pair<int, double>> average;
+      average.reserve(touched.size());
+      for (int n : touched) {
+        const double w = dense[n] / total;
+        if (std::abs(w) > 1e-200) average.emplace_back(n, w);
+        dense[n] = 0.0;
+      }
+      if (total == h + 1.0) continue;  // no other frame in the window
+      const double smoothed =
+          NeighbourhoodCost(data, neighbours[k], k, frame, average, &m);
+      if (smoothed <= cost + options.tolerance * 3.0 * options.noise2 * m + tie) {
+        (*frame.weights)[k] = std::move(average);
+        ++taken[k];
+        if (changed) (*changed)[f][k] = 1;
+      }
+    }
+  });
+  int64_t sum = 0;
+  for (int64_t t : taken) sum += t;
+  return sum;
+}
+
+}  // namespace hmc
