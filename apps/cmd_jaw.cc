@@ -10,6 +10,7 @@
 
 #include "apps/command.h"
 #include "core/actor.h"
+#include "core/actor_cache.h"
 #include "core/frame_data.h"
 #include "core/logging.h"
 #include "stabilization/accuracy.h"
@@ -37,7 +38,8 @@ HMC_COMMAND(Jaw, "", "jaw",
     binding->Apply();
     RequireValid(*options, "jaw");
     StageTimer timer("jaw");
-    const Actor actor = LoadActor(*actor_dir);
+    const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
+    const Actor& actor = *loaded;
     const std::vector<BundleFrame> frames = ReadBundlesCsv(*bundles);
     const MarkerModel model = ComputeMarkerModel(actor);
     const JawOutput output = RunJaw(actor, model, frames, *options);

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/command.h"
+#include "core/actor_cache.h"
 #include "core/logging.h"
 #include "pipeline/run_pipeline.h"
 
@@ -37,6 +38,12 @@ HMC_COMMAND(Run, "", "run",
     input->config = binding->config_file();
     RequireValid(*options, "run");
     StageTimer timer("run");
+    // Every stage loads the actor; parse it once for the run (each stage
+    // still reads and hashes the files: core/actor_cache.h).
+    struct ActorCacheOn {
+      ActorCacheOn() { EnableActorCache(true); }
+      ~ActorCacheOn() { EnableActorCache(false); }
+    } cache;
     const RunSummary summary = RunPipeline(*input, *options, &RunCommandLine);
     spdlog::info("run: {} -> {}", summary.BriefReport(), input->out);
     return 0;

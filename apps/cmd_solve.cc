@@ -28,6 +28,7 @@
 #include "blending/solve_index_cache.h"
 #include "blending/solve_method.h"
 #include "core/actor.h"
+#include "core/actor_cache.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
 #include "core/logging.h"
@@ -136,7 +137,8 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "solve");
   CheckSolveMethod(cmd.options.method, "--method");
-  const Actor actor = LoadActor(cmd.actor_dir);
+  const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
+  const Actor& actor = *loaded;
   const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
   if (rows.empty()) {
     ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");

@@ -94,7 +94,7 @@ std::string ReadPackageFile(const fs::path& path, const fs::path& yaml_file,
 
 }  // namespace
 
-Actor LoadActor(const fs::path& dir) {
+Actor actor_io::LoadActorPackage(const fs::path& dir) {
   StageTimer timer("load actor " + dir.string());
   if (!fs::is_directory(dir)) {
     ThrowInputError(dir, 0, "actor package folder does not exist");

@@ -81,6 +81,9 @@ struct PackageEntry {
 
 PackageEntry ParseActorYaml(const std::string& text, const fs::path& file);
 
+// LoadActor without the process cache (actor.cc; the cache: actor_cache.cc).
+Actor LoadActorPackage(const fs::path& dir);
+
 // markers.csv against the neutral (its OBJ polygons resolve face indices).
 std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
                                     const TriMesh& mesh,

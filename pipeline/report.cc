@@ -15,6 +15,7 @@
 
 #include "eval/eval_metrics.h"
 #include "core/actor.h"
+#include "core/actor_cache.h"
 #include "core/calibration.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -169,6 +170,8 @@ class ReportWriter {
   void JawSection();
   void SolveSection(const Actor& actor);
   void ContactSheet(const Actor& actor);
+  // The contact sheet's frames, spread evenly over the reconstruction.
+  std::set<int> ContactFrames() const;
   // The box around `camera`'s named dots of the whole shot, with a margin,
   // inside an image of `size` (the whole image without tracks).
   cv::Rect DotsBox(const std::string& camera, cv::Size size) const;
@@ -181,8 +184,7 @@ class ReportWriter {
   std::map<std::tuple<int, std::string, std::string>, Vec2> named_;  // (frame, camera, marker) -> px
   std::vector<Track2d> tracks_;
   MeshSequence recon_;
-  std::optional<MeshSequence> truth_;
-  std::map<int, Eigen::VectorXd> vertex_error_;  // frame -> per-vertex error (mm)
+  std::map<int, Eigen::VectorXd> vertex_error_;  // contact frame -> per-vertex error (mm)
 };
 
 void ReportWriter::StageTable() {
@@ -418,21 +420,33 @@ void ReportWriter::SolveSection(const Actor& actor) {
     Plot({outside, residual}, {"solve: bundles outside their data, bundle residual", "frame", "", 640, 220, true});
   }
   if (!Exists(shot_ / "truth.pc2")) return;
-  truth_ = ReadMeshSequence(shot_ / "truth.pc2", &actor.neutral);
+  // The truth's frames are moved into t and the reconstruction's lent to r
+  // (and given back after), not copied: the report holds the two
+  // sequences once each whatever the shot's length, and per-vertex errors
+  // only for the contact sheet's frames.
+  MeshSequence truth = ReadMeshSequence(shot_ / "truth.pc2", &actor.neutral);
+  const std::set<int> contact = ContactFrames();
   std::vector<MatX3d> t, r;
   std::vector<int> numbers;
+  std::vector<size_t> lent;
   for (size_t i = 0; i < recon_.frames.size(); ++i) {
     const int frame = recon_.start_frame + static_cast<int>(i);
-    const int ti = frame - truth_->start_frame;
-    if (ti < 0 || ti >= static_cast<int>(truth_->frames.size())) continue;
-    t.push_back(truth_->frames[ti]);
-    r.push_back(recon_.frames[i]);
+    const int ti = frame - truth.start_frame;
+    if (ti < 0 || ti >= static_cast<int>(truth.frames.size())) continue;
+    t.push_back(std::move(truth.frames[ti]));
+    r.push_back(std::move(recon_.frames[i]));
+    lent.push_back(i);
     numbers.push_back(frame);
-    vertex_error_[frame] = VertexErrors(t.back(), r.back());
+    if (contact.count(frame)) vertex_error_[frame] = VertexErrors(t.back(), r.back());
   }
+  truth.frames.clear();
+  truth.frames.shrink_to_fit();
   if (numbers.empty()) return;
   const SequenceEvaluator evaluator(actor, MeshMetricsOptions{});
   const SequenceMetrics m = evaluator.Evaluate(t, r, numbers, nullptr);
+  t.clear();
+  t.shrink_to_fit();
+  for (size_t j = 0; j < lent.size(); ++j) recon_.frames[lent[j]] = std::move(r[j]);
   PlotSeries mean{"face mean", {}}, p95{"face p95", {}};
   for (const FrameMetrics& f : m.per_frame) {
     mean.points.emplace_back(f.frame, f.face.mean);
@@ -475,19 +489,25 @@ cv::Rect ReportWriter::DotsBox(const std::string& camera, cv::Size size) const {
   return clipped.area() > 0 ? clipped : whole;
 }
 
+std::set<int> ReportWriter::ContactFrames() const {
+  std::set<int> chosen;
+  if (options_.contact_frames == 0 || recon_.frames.empty()) return chosen;
+  const int first = recon_.start_frame;
+  const int last = first + static_cast<int>(recon_.frames.size()) - 1;
+  const int k = options_.contact_frames;
+  for (int i = 0; i < k; ++i) chosen.insert(first + (last - first) * (2 * i + 1) / (2 * k));
+  return chosen;
+}
+
 void ReportWriter::ContactSheet(const Actor& actor) {
-  if (options_.contact_frames == 0 || recon_.frames.empty()) return;
+  const std::set<int> chosen = ContactFrames();
+  if (chosen.empty()) return;
   std::vector<std::string> names = {"cam0", "cam1"};
   const fs::path cal = Stage("calibrate", "calibration.yaml");
   if (Exists(cal)) {
     names.clear();
     for (const HelmetCamera& c : ReadCalibration(cal).cameras) names.push_back(c.name);
   }
-  const int first = recon_.start_frame;
-  const int last = first + static_cast<int>(recon_.frames.size()) - 1;
-  std::set<int> chosen;
-  const int k = options_.contact_frames;
-  for (int i = 0; i < k; ++i) chosen.insert(first + (last - first) * (2 * i + 1) / (2 * k));
   FootageOptions footage;
   footage.frames = fmt::format("{}:{}", *chosen.begin(), *chosen.rbegin());
   std::vector<cv::Mat> rows;
@@ -497,8 +517,8 @@ void ReportWriter::ContactSheet(const Actor& actor) {
     MeshRenderOptions render;
     render.height = options_.mesh_px;
     render.width = options_.mesh_px * 4 / 5;
-    while (reader.Next(&frame)) {
-      if (!chosen.count(frame.frame)) continue;
+    // The frames between are passed over, not turned into images.
+    while (reader.Next(&frame, [&chosen](int f) { return chosen.count(f) > 0; })) {
       std::vector<cv::Mat> panels;
       std::vector<std::string> labels;
       for (int c = 0; c < reader.num_cameras(); ++c) {
@@ -553,7 +573,8 @@ void ReportWriter::ContactSheet(const Actor& actor) {
 }
 
 ReportSummary ReportWriter::Write() {
-  const Actor actor = LoadActor(in_.actor);
+  const std::shared_ptr<const Actor> loaded = LoadActorShared(in_.actor);
+  const Actor& actor = *loaded;
   EnsureDirectory(in_.out);
   summary_.has_truth = Exists(shot_ / "truth.pc2") || Exists(shot_ / "dots_2d.csv");
   StageTable();

@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "core/actor.h"
+#include "core/actor_cache.h"
 #include "core/calibration.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -316,7 +317,8 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
 RunSummary Pipeline::Run() {
   const auto start = std::chrono::steady_clock::now();
   config_ = ReadRunConfig(input_.config);
-  const Actor actor = LoadActor(input_.actor);
+  const std::shared_ptr<const Actor> loaded = LoadActorShared(input_.actor);
+  const Actor& actor = *loaded;
   actor_hash_ = HashHex(actor.content_hash);
   actor_has_jaw_ = actor.jaw_rig.has_value();
   const int last = StageIndex(options_.to);

@@ -26,6 +26,12 @@ void JawOptions::Register(OptionFields* fields) {
   fields->Add("ridge", &ridge, "lambda: ridge on the global shape weights (mm^2 per unit weight^2)");
   fields->Add("min_jaw_markers", &min_jaw_markers,
               "fewer jaw markers present: the frame is interpolated");
+  fields->Add("min_marker_fraction", &min_marker_fraction,
+              "a fit on fewer than this fraction of the shot's median jaw-marker count is "
+              "not trusted: the frame is interpolated (0 = off)");
+  fields->Add("max_residual_ratio", &max_residual_ratio,
+              "> 0: a fit whose jaw-marker residual exceeds this many times the shot's median is "
+              "not trusted: the frame is interpolated (0 = off)");
   fields->Add("lip_prefix", &lip_prefix,
               "markers named so (or tagged lower_lip) join the jaw markers");
   fields->Add("max_solver_iterations", &max_solver_iterations,
@@ -43,6 +49,12 @@ bool JawOptions::Check() const {
   if (!(bound_margin >= 0 && bound_margin <= 10)) fail("bound_margin must be in [0, 10]");
   if (!(ridge > 0 && ridge <= 1e6)) fail("ridge must be in (0, 1e6]");
   if (min_jaw_markers < 2 || min_jaw_markers > 10000) fail("min_jaw_markers must be in [2, 10000]");
+  if (!(min_marker_fraction >= 0 && min_marker_fraction <= 1)) {
+    fail("min_marker_fraction must be in [0, 1]");
+  }
+  if (!(max_residual_ratio == 0 || (max_residual_ratio >= 1 && max_residual_ratio <= 1e6))) {
+    fail("max_residual_ratio must be 0 (off) or in [1, 1e6]");
+  }
   if (max_solver_iterations < 1 || max_solver_iterations > 1000) {
     fail("max_solver_iterations must be in [1, 1000]");
   }
@@ -269,6 +281,43 @@ class FrameJawFitter {
   Eigen::MatrixXd full_projection_;  // P over all markers
 };
 
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// Fits on markedly fewer jaw markers than the shot's median, or with a
+// residual far above its median, are not trusted (jaw_fit.h): they become
+// interpolated frames with the reason said.
+void RejectUnreliableFits(const JawOptions& options, std::vector<JawFit>* frames) {
+  std::vector<double> counts, residuals;
+  for (const JawFit& fit : *frames) {
+    if (!fit.ok) continue;
+    counts.push_back(fit.jaw_markers);
+    residuals.push_back(fit.rms_mm);
+  }
+  if (counts.empty()) return;
+  const double usual_count = Median(counts);
+  const double usual_residual = Median(residuals);
+  for (JawFit& fit : *frames) {
+    if (!fit.ok) continue;
+    if (fit.jaw_markers < options.min_marker_fraction * usual_count) {
+      fit.ok = false;
+      fit.reason = fmt::format(
+          "{} jaw markers, fewer than {} x the shot's median {}: fit not trusted",
+          fit.jaw_markers, options.min_marker_fraction, usual_count);
+    } else if (options.max_residual_ratio > 0 &&
+               fit.rms_mm > options.max_residual_ratio * usual_residual) {
+      fit.ok = false;
+      fit.reason = fmt::format(
+          "jaw-marker residual {:.3f} mm, above {} x the shot's median {:.3f} mm: fit not "
+          "trusted",
+          fit.rms_mm, options.max_residual_ratio, usual_residual);
+    }
+  }
+}
+
 // Linear interpolation of the poses of frames with !ok by frame number,
 // held at the ends.
 void InterpolateFailedJaw(std::vector<JawFit>* frames) {
@@ -380,6 +429,7 @@ JawOutput RunJaw(const Actor& actor, const MarkerModel& model,
   const int num_frames = static_cast<int>(bundles.size());
   out.frames.resize(num_frames);
   ParallelFor(0, num_frames, [&](int64_t f) { out.frames[f] = fitter.Fit(bundles[f]); }, 4);
+  RejectUnreliableFits(options, &out.frames);
   InterpolateFailedJaw(&out.frames);
   SmoothJaw(options.smoothness, out.lower, out.upper, &out.frames);
   double sum = 0;

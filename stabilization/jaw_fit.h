@@ -21,6 +21,12 @@
 // information (the Laplace approximation of the frame's data term), solved
 // with Ceres over all frames; a frame without enough jaw markers has no
 // data term there and is filled by the prior (linearly when mu = 0).
+// A fit on markedly fewer jaw markers than the shot's frames usually have
+// (min_marker_fraction of the median count), or (when max_residual_ratio
+// > 0) whose residual is far above theirs, is not trusted either:
+// where the tracker loses jaw markers for a stretch, the fits at its ends
+// rest on the few left and can be far off, and they would anchor the
+// stretch's interpolation (docs/stabilization.md, "Unreliable fits").
 #pragma once
 
 #include <array>
@@ -40,6 +46,8 @@ struct JawOptions {
   double bound_margin = 0.25;    // bounds: the dataset's jaw range widened by this fraction of it (at least 1 deg / 1 mm) on each side
   double ridge = 0.1;            // lambda: ridge on the global shape weights (mm^2 per unit weight^2)
   int min_jaw_markers = 4;       // fewer jaw markers present: the frame is interpolated
+  double min_marker_fraction = 0.75;  // fewer than this fraction of the shot's median jaw-marker count: the fit is not trusted (interpolated)
+  double max_residual_ratio = 0;  // > 0: a residual above this many times the shot's median residual: the fit is not trusted (interpolated); 0 = off
   std::string lip_prefix = "mouth_lower";  // markers named so (or tagged lower_lip) join the jaw markers
   int max_solver_iterations = 20;  // Ceres iterations per frame
   int threads = 0;               // worker threads (0 = all cores)

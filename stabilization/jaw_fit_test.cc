@@ -1,6 +1,7 @@
 #include "stabilization/jaw_fit.h"
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <tuple>
 
@@ -119,6 +120,60 @@ TEST(JawFitTest, FramesWithoutJawMarkersAreInterpolatedAndFlagged) {
   const std::array<double, 3> after = out.frames[7].pose.ToArray();
   const std::array<double, 3> f5 = out.frames[5].pose.ToArray();
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(f5[i], before[i] + (after[i] - before[i]) / 3, 1e-12);
+}
+
+// Jaw markers lost for a stretch, and at its two ends only a few left,
+// named wrongly (8 mm off): those end fits rest on too few markers and must
+// not anchor the stretch's interpolation (jaw_fit.h). Compared with the
+// same shot without the rule, against the true jaw.
+TEST(JawFitTest, FitsOnTooFewJawMarkersDoNotAnchorTheInterpolation) {
+  const SmallActor& a = Actor1();
+  for (int seed : {1, 2}) {
+    PerformanceOptions perf;
+    perf.frames = 30;
+    perf.seed = seed;
+    ShotTruth shot = MakeShotTruth(a, perf, 0.0);
+    JawOptions options;
+    const std::vector<int> jaw = JawMarkers(a.markers, a.actor, options);
+    ASSERT_GE(jaw.size() * options.min_marker_fraction, options.min_jaw_markers + 1.0);
+    for (int f = 12; f <= 15; ++f) {
+      for (int k : jaw) shot.head[f].bundles.erase(a.markers.names[k]);
+    }
+    for (int f : {11, 16}) {  // min_jaw_markers left, named wrongly: 8 mm off
+      for (size_t i = 0; i < jaw.size(); ++i) {
+        const std::string& name = a.markers.names[jaw[i]];
+        if (static_cast<int>(i) >= options.min_jaw_markers) {
+          shot.head[f].bundles.erase(name);
+        } else {
+          shot.head[f].bundles[name] += Vec3(0, -8, 2);
+        }
+      }
+    }
+    const JawOutput out = RunJaw(a.actor, a.markers, shot.head, options);
+    JawOptions trusting = options;
+    trusting.min_marker_fraction = 0;
+    trusting.max_residual_ratio = 0;
+    const JawOutput trusted = RunJaw(a.actor, a.markers, shot.head, trusting);
+    for (int f : {11, 16}) {
+      EXPECT_FALSE(out.frames[f].ok) << f;
+      EXPECT_NE(out.frames[f].reason.find("not trusted"), std::string::npos) << out.frames[f].reason;
+      EXPECT_TRUE(trusted.frames[f].ok) << f;
+    }
+    double sq = 0, sq_trusted = 0;
+    for (int f = 11; f <= 16; ++f) {
+      const double truth = shot.jaw[f].pose.open_deg;
+      sq += std::pow(out.frames[f].pose.open_deg - truth, 2);
+      sq_trusted += std::pow(trusted.frames[f].pose.open_deg - truth, 2);
+    }
+    std::printf("seed %d: open RMS over the stretch %.3f deg, trusting the end fits %.3f\n", seed,
+                std::sqrt(sq / 6), std::sqrt(sq_trusted / 6));
+    EXPECT_LT(std::sqrt(sq / 6), 0.5 * std::sqrt(sq_trusted / 6)) << "seed " << seed;
+    // The other frames are fitted as before.
+    for (int f : {3, 25}) {
+      EXPECT_TRUE(out.frames[f].ok);
+      EXPECT_NEAR(out.frames[f].pose.open_deg, shot.jaw[f].pose.open_deg, 0.05) << f;
+    }
+  }
 }
 
 TEST(JawFitTest, AnActorWithoutAJawRigGetsAClearMessage) {

@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/text.h"
 
 namespace hmc {
@@ -111,6 +112,9 @@ class CameraSource {
   // The image of `frame` (frames are asked for in increasing order), or
   // empty with `error` set.
   virtual cv::Mat Read(int frame, std::string* error) = 0;
+  // Passes over `frame` (asked for in the same order as Read) without
+  // producing its image: a video still decodes it, but does not convert it.
+  virtual void Skip(int frame) { (void)frame; }
   // True once it is known that no frame >= `frame` will come (a video that
   // ended early: truncated, or without a declared length).
   virtual bool EndedBefore(int frame) const { return frame > last(); }
@@ -204,7 +208,8 @@ class VideoSource : public CameraSource {
     fps_ = std::isfinite(fps) && fps > 0 && fps < 10000 ? fps : 0;
     declared_frames_ = std::isfinite(count) && count > 0 ? static_cast<int>(std::lround(count)) : 0;
     if (!Advance()) ThrowInputError(path, 0, "no frame of the video decodes");
-    size_ = pending_.size();
+    size_ = cv::Size(static_cast<int>(capture_.get(cv::CAP_PROP_FRAME_WIDTH)),
+                     static_cast<int>(capture_.get(cv::CAP_PROP_FRAME_HEIGHT)));
     first_ = pending_frame_;
   }
   cv::Size size() const override { return size_; }
@@ -215,8 +220,12 @@ class VideoSource : public CameraSource {
   cv::Mat Read(int frame, std::string* error) override {
     while (!ended_ && pending_frame_ < frame) Advance();
     if (!ended_ && pending_frame_ == frame) {
-      cv::Mat out = pending_;
+      cv::Mat out = Retrieve();
       Advance();
+      if (out.empty()) {
+        *error = "the frame does not decode";
+        return {};
+      }
       if (out.size() != size_) {
         *error = fmt::format("decoded size {}x{} differs from the video's {}x{}", out.cols,
                              out.rows, size_.width, size_.height);
@@ -226,6 +235,10 @@ class VideoSource : public CameraSource {
     }
     *error = "the frame does not decode";
     return {};
+  }
+  void Skip(int frame) override {
+    while (!ended_ && pending_frame_ < frame) Advance();
+    if (!ended_ && pending_frame_ == frame) Advance();
   }
   bool EndedBefore(int frame) const override {
     return frame > last() || (ended_ && frame > last_decoded_);
@@ -241,18 +254,17 @@ class VideoSource : public CameraSource {
   }
 
  private:
-  // Decodes the next frame into pending_; false (ended_) at the end.
+  // Decodes the next frame (cv::VideoCapture::grab: not yet converted to
+  // an image, see Retrieve) and numbers it; false (ended_) at the end.
   bool Advance() {
-    cv::Mat raw;
     bool got = false;
     try {
-      got = capture_.read(raw);
+      got = capture_.grab();
     } catch (const cv::Exception& e) {
       spdlog::warn("{}: {}", path_.string(), e.what());
     }
-    if (!got || raw.empty()) {
+    if (!got) {
       ended_ = true;
-      pending_.release();
       return false;
     }
     // The decoded picture's timestamp (ms from the stream's start, from its
@@ -263,17 +275,36 @@ class VideoSource : public CameraSource {
       number = static_cast<int>(std::lround(ms * fps_ / 1000.0)) + 1;
     }
     if (number <= last_decoded_) number = last_decoded_ + 1;  // never go back
-    if (raw.depth() != CV_8U && raw.depth() != CV_16U) raw.convertTo(raw, CV_8U);
-    pending_ = ToGrey(raw);
     pending_frame_ = number;
     last_decoded_ = number;
     return true;
   }
 
+  // The image of the frame Advance decoded last (empty if it cannot be
+  // converted).
+  // OpenCV's FFmpeg backend hands out BGR (converted by swscale; grey
+  // footage comes back as three equal channels): raw_ keeps that buffer
+  // from frame to frame instead of faulting in fresh pages for it.
+  cv::Mat Retrieve() {
+    try {
+      if (!capture_.retrieve(raw_) || raw_.empty()) return {};
+    } catch (const cv::Exception& e) {
+      spdlog::warn("{}: {}", path_.string(), e.what());
+      return {};
+    }
+    if (raw_.depth() != CV_8U && raw_.depth() != CV_16U) {
+      cv::Mat converted;
+      raw_.convertTo(converted, CV_8U);
+      return ToGrey(converted);
+    }
+    const cv::Mat grey = ToGrey(raw_);
+    return grey.data == raw_.data ? grey.clone() : grey;
+  }
+
   fs::path path_;
   cv::VideoCapture capture_;
   cv::Size size_;
-  cv::Mat pending_;
+  cv::Mat raw_;  // the last retrieved picture, as the backend gives it
   int pending_frame_ = 0;
   int first_ = 1;
   int last_decoded_ = 0;
@@ -406,42 +437,56 @@ int FootageReader::first_frame() const { return impl_->first; }
 int FootageReader::last_frame() const { return impl_->last; }
 const std::vector<std::string>& FootageReader::warnings() const { return impl_->warnings; }
 
-bool FootageReader::Next(FootageFrame* frame) {
+bool FootageReader::Next(FootageFrame* frame) { return Next(frame, nullptr); }
+
+bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wanted) {
   Impl& d = *impl_;
-  if (d.next > d.last) {
-    if (!d.source_warnings_added) {
-      d.source_warnings_added = true;
-      for (const auto& source : d.sources) {
-        for (const std::string& w : source->warnings()) {
-          spdlog::warn("footage: {}", w);
-          d.warnings.push_back(w);
+  for (;;) {
+    if (d.next > d.last) {
+      if (!d.source_warnings_added) {
+        d.source_warnings_added = true;
+        for (const auto& source : d.sources) {
+          for (const std::string& w : source->warnings()) {
+            spdlog::warn("footage: {}", w);
+            d.warnings.push_back(w);
+          }
         }
       }
+      return false;
     }
-    return false;
-  }
-  const int f = d.next;
-  for (size_t c = 0; c < d.sources.size(); ++c) {
-    if (d.sources[c]->EndedBefore(f + d.offsets[c])) {
+    const int f = d.next;
+    bool ended = false;
+    for (size_t c = 0; c < d.sources.size(); ++c) {
+      ended = ended || d.sources[c]->EndedBefore(f + d.offsets[c]);
+    }
+    if (ended) {
       d.last = f - 1;  // a video ended early: what decoded is the shot
-      return Next(frame);
+      continue;
     }
-  }
-  ++d.next;
-  frame->frame = f;
-  frame->images.assign(d.sources.size(), cv::Mat());
-  frame->errors.assign(d.sources.size(), std::string());
-  for (size_t c = 0; c < d.sources.size(); ++c) {
-    std::string error;
-    frame->images[c] = d.sources[c]->Read(f + d.offsets[c], &error);
-    if (frame->images[c].empty()) {
-      frame->errors[c] = error.empty() ? "no image" : error;
-      const std::string w = fmt::format("frame {} {}: {}", f, d.names[c], frame->errors[c]);
-      spdlog::warn("footage: {}", w);
-      d.warnings.push_back(w);
+    ++d.next;
+    // The cameras' sources are independent: they decode side by side.
+    const int64_t num_sources = static_cast<int64_t>(d.sources.size());
+    if (wanted && !wanted(f)) {
+      ParallelFor(0, num_sources, [&](int64_t c) { d.sources[c]->Skip(f + d.offsets[c]); });
+      continue;
     }
+    frame->frame = f;
+    frame->images.assign(d.sources.size(), cv::Mat());
+    frame->errors.assign(d.sources.size(), std::string());
+    ParallelFor(0, num_sources, [&](int64_t c) {
+      frame->images[c] = d.sources[c]->Read(f + d.offsets[c], &frame->errors[c]);
+    });
+    for (size_t c = 0; c < d.sources.size(); ++c) {
+      if (frame->images[c].empty()) {
+        const std::string error = frame->errors[c];
+        frame->errors[c] = error.empty() ? "no image" : error;
+        const std::string w = fmt::format("frame {} {}: {}", f, d.names[c], frame->errors[c]);
+        spdlog::warn("footage: {}", w);
+        d.warnings.push_back(w);
+      }
+    }
+    return true;
   }
-  return true;
 }
 
 cv::Mat ToGrey8(const cv::Mat& image) {

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -89,6 +90,11 @@ class FootageReader {
   // Reads the next frame in order; false after the last one. Never throws
   // for a bad frame: the frame comes back with the camera's error set.
   bool Next(FootageFrame* frame);
+  // Reads the next frame for which wanted(frame number) is true; the frames
+  // before it are passed over (a video still decodes them, since its
+  // frames may depend on earlier ones, but does not convert them into
+  // images). For readers that need a sample of the frames (hmc calibrate).
+  bool Next(FootageFrame* frame, const std::function<bool(int)>& wanted);
 
   // Shot-level warnings (different lengths, a truncated video, ...), and
   // per-frame decode failures ("frame 17 cam1: ...") as they happen.

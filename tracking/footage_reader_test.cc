@@ -1,5 +1,6 @@
 #include "tracking/footage_reader.h"
 
+#include <algorithm>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -95,6 +96,39 @@ TEST(FootageReaderTest, Ffv1VideoDecodesLosslesslyWithRangeAndOffset) {
     ASSERT_TRUE(frames[i].complete());
     EXPECT_TRUE(SameImage(frames[i].images[0], Pattern(0, f))) << f;
     EXPECT_TRUE(SameImage(frames[i].images[1], Pattern(1, f + 2))) << f;
+  }
+}
+
+// Reading a sample of the frames (hmc calibrate) gives exactly those
+// frames, each as reading every frame gives it, for videos (passed-over
+// frames decoded but not converted) and image folders alike.
+TEST(FootageReaderTest, ASampleOfFramesReadsAsReadingThemAll) {
+  TempDir dir;
+  WriteVideo(dir.path() / "cam0.mkv", 0, 30);
+  WriteFolder(dir.path() / "cam1", 1, 0, 30);
+  FootageOptions options;
+  options.offset1 = 1;
+  FootageReader all_reader(dir.path(), {"cam0", "cam1"}, options);
+  const std::vector<FootageFrame> all = ReadAll(all_reader);
+  ASSERT_EQ(all.size(), 29u);
+  for (const std::vector<int>& sample :
+       {std::vector<int>{1, 2, 3}, std::vector<int>{5, 17, 18, 29}, std::vector<int>{29}}) {
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, options);
+    const auto wanted = [&sample](int f) {
+      return std::find(sample.begin(), sample.end(), f) != sample.end();
+    };
+    std::vector<int> got;
+    FootageFrame frame;
+    while (reader.Next(&frame, wanted)) {
+      got.push_back(frame.frame);
+      const FootageFrame& same = all[frame.frame - 1];
+      ASSERT_EQ(same.frame, frame.frame);
+      for (int c = 0; c < 2; ++c) {
+        EXPECT_TRUE(SameImage(frame.images[c], same.images[c])) << frame.frame << " cam" << c;
+        EXPECT_TRUE(SameImage(frame.images[c], Pattern(c, frame.frame + c))) << frame.frame;
+      }
+    }
+    EXPECT_EQ(got, sample);
   }
 }
 

@@ -499,8 +499,11 @@ std::vector<TagObservation> DetectOnFrames(const std::filesystem::path& shot,
   Progress progress("calibrate: tags", wanted ? static_cast<int64_t>(wanted->size())
                                               : reader.num_frames());
   FootageFrame frame;
-  while (reader.Next(&frame)) {
-    if (wanted && !std::binary_search(wanted->begin(), wanted->end(), frame.frame)) continue;
+  // The other frames are passed over without being turned into images.
+  const auto is_wanted = [wanted](int f) {
+    return !wanted || std::binary_search(wanted->begin(), wanted->end(), f);
+  };
+  while (reader.Next(&frame, is_wanted)) {
     ++*frames_read;
     std::vector<std::vector<TagObservation>> per_camera(nc);
     ParallelFor(0, nc, [&](int64_t c) {
