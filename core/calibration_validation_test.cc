@@ -54,6 +54,24 @@ void ExpectRefused(const std::filesystem::path& dir, const std::string& text,
   }
 }
 
+// Issue 24, item 10: a key given twice (FileStorage alone keeps one of
+// them) is refused with its line, at the top level and inside a camera.
+TEST(CalibrationValidationTest, RepeatedKeysAreRefused) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ASSERT_NE(valid.find("units: mm\n"), std::string::npos) << valid;
+  ExpectRefused(dir.path(), Replace(valid, "units: mm\n", "units: mm\nunits: cm\n"),
+                "given twice");
+  ASSERT_NE(valid.find("image_width: 640\n"), std::string::npos) << valid;
+  const size_t at = valid.find("image_width: 640\n");
+  const size_t line_start = valid.rfind('\n', at) + 1;
+  const std::string indent = valid.substr(line_start, at - line_start);
+  ExpectRefused(dir.path(),
+                Replace(valid, "image_width: 640\n",
+                        "image_width: 640\n" + indent + "image_width: 64\n"),
+                "given twice");
+}
+
 TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {
   TempDir dir;
   const std::string valid = ValidCalibration(dir.path());
