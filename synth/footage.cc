@@ -87,10 +87,10 @@ namespace {
 // renderer's hot loops; `max_theta` (the camera's MaxTheta) replaces the
 // per-point monotonicity check.
 struct FastFisheye {
-  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta;
+  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta, width, height;
   explicit FastFisheye(const FisheyeCamera& c)
       : fx(c.fx), fy(c.fy), cx(c.cx), cy(c.cy), k1(c.k[0]), k2(c.k[1]), k3(c.k[2]),
-        k4(c.k[3]), max_theta(c.MaxTheta()) {}
+        k4(c.k[3]), max_theta(c.MaxTheta()), width(c.width), height(c.height) {}
   bool Project(const Vec3& p, Vec2* pixel) const {
     const double r = std::sqrt(p.x() * p.x() + p.y() * p.y());
     double scale;
@@ -159,6 +159,18 @@ class Subdivider {
       // error is already far below any tolerance in practice.
       split[e] = err[e] > tolerance_ && (p.s - q.s).norm() > 0.25 && depth < kMaxDepth;
       num_split += split[e];
+    }
+    // Far off the image (beyond it by its sagittas and one image size; a
+    // real lens never projects there): never split, so the work is bounded
+    // by the image size whatever the lens (issue 24, item 4).
+    const double size = camera_.width + camera_.height;
+    const double pad = std::min(std::max({err[0], err[1], err[2]}), size) + size;
+    if (std::max({a.s.x(), b.s.x(), c.s.x()}) < -pad || std::max({a.s.y(), b.s.y(), c.s.y()}) < -pad ||
+        std::min({a.s.x(), b.s.x(), c.s.x()}) > camera_.width + pad ||
+        std::min({a.s.y(), b.s.y(), c.s.y()}) > camera_.height + pad) {
+      out_->tris.push_back({a.ref, b.ref, c.ref});
+      out_->face.push_back(face);
+      return;
     }
     if (num_split == 0) {
       out_->tris.push_back({a.ref, b.ref, c.ref});
