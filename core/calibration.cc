@@ -84,7 +84,25 @@ void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig) {
   WriteFileAtomic(path, fs.releaseAndGetString());
 }
 
+namespace {
+
+HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path);
+
+}  // namespace
+
 HelmetRig ReadCalibration(const std::filesystem::path& path) {
+  // OpenCV throws on malformed nodes (an `!!opencv-matrix` without `dt`,
+  // found by fuzzing: docs/reliability.md); that is bad input, not a crash.
+  try {
+    return ReadCalibrationFileStorage(path);
+  } catch (const cv::Exception& e) {
+    ThrowInputError(path, 0, "not a valid calibration file: {}", e.err);
+  }
+}
+
+namespace {
+
+HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path) {
   const std::string text = ReadFile(path);
   {
     // A key given twice is refused like in every YAML hmc reads
@@ -168,5 +186,7 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
   }
   return rig;
 }
+
+}  // namespace
 
 }  // namespace hmc

@@ -1,5 +1,6 @@
 // calibration.yaml refusals: an incomplete or inconsistent file is refused
 // with the file and the key named (core/calibration.h).
+#include <cstdlib>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -70,6 +71,16 @@ TEST(CalibrationValidationTest, RepeatedKeysAreRefused) {
                 Replace(valid, "image_width: 640\n",
                         "image_width: 640\n" + indent + "image_width: 64\n"),
                 "given twice");
+}
+
+// Found by fuzzing (docs/reliability.md): a matrix node OpenCV cannot read
+// (no usable `dt`) threw a raw cv::Exception; it is an InputError.
+TEST(CalibrationValidationTest, FuzzedMalformedMatrixIsAnInputError) {
+  const char* root = std::getenv("HMC_SOURCE_DIR");
+  const std::filesystem::path file = std::filesystem::path(root ? root : ".") /
+                                     "tests/fixtures/fuzz_crashes/calibration_matrix_without_dt.yaml";
+  ASSERT_TRUE(std::filesystem::exists(file));
+  EXPECT_THROW(ReadCalibration(file), InputError);
 }
 
 TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {
