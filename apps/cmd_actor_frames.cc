@@ -107,31 +107,32 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
       StageTimer evaluate("evaluate frames");
       frames = MakeTruthFrames(model, actor.markers, plan, *options);
     }
-    const std::filesystem::path dir = *out;
-    EnsureDirectory(dir);
-    MeshSequence sequence;
-    sequence.frames = frames.positions;
-    sequence.start_frame = frames.start_frame;
-    sequence.fps = options->fps;
-    sequence.topology = actor.neutral;
-    WriteMeshSequence(dir / "truth.pc2", sequence);
-    WriteObj(dir / "neutral.obj", actor.neutral);
-    WriteBundlesCsv(dir / "bundles.csv", frames.bundles);
-    WriteJawCsv(dir / "jaw.csv", frames.jaw);
-    std::string header = "frame";
-    for (const ActionUnit& unit : model.units()) header += "," + unit.name;
-    WritePerFrameCsv(dir / "activations.csv", header, frames, [&](int f) {
-      std::string row;
-      for (int k = 0; k < frames.activations[f].size(); ++k) {
-        row += fmt::format("{}{:.6g}", k ? "," : "", frames.activations[f][k]);
-      }
-      return row;
+    // Written whole (docs/reliability.md).
+    WriteFolderAtomic(*out, "hmc actor frames", [&](const std::filesystem::path& dir) {
+      MeshSequence sequence;
+      sequence.frames = frames.positions;
+      sequence.start_frame = frames.start_frame;
+      sequence.fps = options->fps;
+      sequence.topology = actor.neutral;
+      WriteMeshSequence(dir / "truth.pc2", sequence);
+      WriteObj(dir / "neutral.obj", actor.neutral);
+      WriteBundlesCsv(dir / "bundles.csv", frames.bundles);
+      WriteJawCsv(dir / "jaw.csv", frames.jaw);
+      std::string header = "frame";
+      for (const ActionUnit& unit : model.units()) header += "," + unit.name;
+      WritePerFrameCsv(dir / "activations.csv", header, frames, [&](int f) {
+        std::string row;
+        for (int k = 0; k < frames.activations[f].size(); ++k) {
+          row += fmt::format("{}{:.6g}", k ? "," : "", frames.activations[f][k]);
+        }
+        return row;
+      });
+      WritePerFrameCsv(dir / "labels.csv", "frame,label", frames,
+                       [&](int f) { return frames.labels[f]; });
+      OptionFields used;
+      options->Register(&used);
+      WriteOptionsUsed(used, dir / "options_used.yaml");
     });
-    WritePerFrameCsv(dir / "labels.csv", "frame,label", frames,
-                     [&](int f) { return frames.labels[f]; });
-    OptionFields used;
-    options->Register(&used);
-    WriteOptionsUsed(used, dir / "options_used.yaml");
     if (!held.empty()) {
       spdlog::info("actor frames: {} held-out units: {}", held.size(),
                    synth.holdout_units.empty() ? "(drawn from the seed)"
@@ -139,7 +140,7 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
     }
     spdlog::info("actor frames: {} {} frames of {} markers (noise {} mm) -> {}",
                  frames.positions.size(), options->kind, actor.markers.size(),
-                 options->noise_mm, dir.string());
+                 options->noise_mm, *out);
     return 0;
   };
 }

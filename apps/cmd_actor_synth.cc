@@ -52,34 +52,35 @@ HMC_COMMAND(ActorSynth, "actor", "synth",
     binding->Apply();
     RequireValid(*options, "actor synth");
     StageTimer timer("actor synth");
-    const std::filesystem::path dir = *out;
-    EnsureDirectory(dir);
-    Actor actor;
-    std::vector<DatasetEntry> plan;
-    {
-      StageTimer generate("generate");
-      const FaceModel model(*options);
-      // synth.yaml records the held-out names, not only their count.
-      *options = ResolveHoldout(model, *options);
-      plan = PlanDataset(model, *options);
-      actor = SynthesizeActorFromModel(model, *options);
-      spdlog::info(
-          "actor synth: seed {}, {} vertices, {} triangles, {} markers, {} "
-          "units, {} shapes",
-          options->seed, actor.NumVertices(), actor.neutral.NumFaces(),
-          actor.markers.size(), model.NumUnits(), actor.shapes.size());
-      if (options->holdout > 0) {
-        spdlog::info("actor synth: {} units held out of the dataset: {}",
-                     options->holdout, options->holdout_units);
+    // Written whole (docs/reliability.md).
+    WriteFolderAtomic(*out, "hmc actor synth", [&](const std::filesystem::path& dir) {
+      Actor actor;
+      std::vector<DatasetEntry> plan;
+      {
+        StageTimer generate("generate");
+        const FaceModel model(*options);
+        // synth.yaml records the held-out names, not only their count.
+        *options = ResolveHoldout(model, *options);
+        plan = PlanDataset(model, *options);
+        actor = SynthesizeActorFromModel(model, *options);
+        spdlog::info(
+            "actor synth: seed {}, {} vertices, {} triangles, {} markers, {} "
+            "units, {} shapes",
+            options->seed, actor.NumVertices(), actor.neutral.NumFaces(),
+            actor.markers.size(), model.NumUnits(), actor.shapes.size());
+        if (options->holdout > 0) {
+          spdlog::info("actor synth: {} units held out of the dataset: {}",
+                       options->holdout, options->holdout_units);
+        }
+        WriteDatasetActivations(dir / "dataset_activations.csv", model, plan);
       }
-      WriteDatasetActivations(dir / "dataset_activations.csv", model, plan);
-    }
-    {
-      StageTimer write("write package");
-      WriteActor(actor, dir);
-      WriteSynthActorOptions(*options, dir);
-    }
-    spdlog::info("actor synth: wrote {}", dir.string());
+      {
+        StageTimer write("write package");
+        WriteActor(actor, dir);
+        WriteSynthActorOptions(*options, dir);
+      }
+    });
+    spdlog::info("actor synth: wrote {}", *out);
     return 0;
   };
 }

@@ -13,10 +13,16 @@
 // never writes into the actor package.
 // Writes options_used.yaml (with the method) next to OUT.
 //
-// Frames run from the first to the last frame number of bundles.csv; a frame
-// without rows, with too few bundles or without a jaw pose (when --jaw is
-// given) is flagged bad in the diagnostics and repeats the previous good
-// mesh (the jaw-skinned neutral before the first good frame).
+// Frames run from the first to the last frame number of bundles.csv (a gap
+// of more than input.max_frame_gap missing frames is an input error); a
+// frame without rows, with too few bundles, without a jaw pose (when --jaw
+// is given) or with one out of range is flagged bad in the diagnostics and
+// repeats the previous good mesh (the jaw-skinned neutral before the first
+// good frame); when no frame can be solved nothing is written and the exit
+// code is 2. A bundle outside the actor's reach is an outlier: flagged in
+// the diagnostics, dropped from its frame. Unknown marker names are
+// ignored with one warning (docs/reliability.md).
+#include <algorithm>
 #include <memory>
 #include <string>
 
@@ -42,13 +48,15 @@ struct SolveCommandOptions {
   std::string method = "robust";  // robust | lgi | blendshape |
                                   // blendshape-bounded | interp | lgi-rbf
   MethodOptions methods;
+  SequenceInputOptions input;
 
   void Register(OptionFields* fields) {
     fields->Add("method", &method,
                 "solve method: " + SolveMethodList());
     methods.Register(fields);
+    input.Register(fields);
   }
-  bool Check() const { return methods.Check(); }
+  bool Check() const { return methods.Check() && input.Check(); }
 };
 
 struct SolveCommand {
@@ -74,10 +82,12 @@ const char* StatusName(BundleSolve::Status status) {
 }
 
 nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
-                           const LgiModel* model, const SolveResult& result) {
+                           const LgiModel* model, const SolveResult& result,
+                           const DenseSequence& input) {
   const SolveSummary& s = result.summary;
   nlohmann::json frames = nlohmann::json::array();
-  for (const FrameSolve& f : result.frames) {
+  for (size_t i = 0; i < result.frames.size(); ++i) {
+    const FrameSolve& f = result.frames[i];
     nlohmann::json bundles = nlohmann::json::array();
     for (size_t k = 0; k < f.bundles.size() && f.ok; ++k) {
       const BundleSolve& b = f.bundles[k];
@@ -109,6 +119,7 @@ nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
                         {"lateral_deg", f.jaw.lateral_deg},
                         {"protrude_mm", f.jaw.protrude_mm}}},
                       {"unknown_markers", f.unknown_markers},
+                      {"outlier_markers", input.outliers[i]},
                       {"bundles", bundles}});
   }
   nlohmann::json index = nullptr;
@@ -129,6 +140,8 @@ nlohmann::json Diagnostics(const Actor& actor, const std::string& method,
             {"bundles_inside", s.bundles_inside},
             {"bundles_projected", s.bundles_projected},
             {"bundles_filled", s.bundles_filled},
+            {"outlier_bundles", input.num_outliers},
+            {"unknown_marker_rows", input.unknown_rows},
             {"max_projection_mm", s.max_projection}}},
           {"frames", frames}};
 }
@@ -137,15 +150,23 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "solve");
   CheckSolveMethod(cmd.options.method, "--method");
+  // Every output path is checked (and its folder created) before the
+  // long work, so a bad one never costs a solve nor replaces a file.
+  const SequenceFormat format = SequenceFormatFromPath(cmd.out);
+  const std::filesystem::path out_path(cmd.out);
+  const std::filesystem::path parent =
+      out_path.has_parent_path() ? out_path.parent_path()
+                                 : std::filesystem::path(".");
+  PrepareOutputPath(cmd.out, "--out", format == SequenceFormat::kObjFolder);
+  PrepareOutputPath(parent / "options_used.yaml", "options_used.yaml beside --out");
+  if (!cmd.diagnostics_file.empty()) PrepareOutputPath(cmd.diagnostics_file, "--diagnostics");
+  if (!cmd.topology_file.empty()) PrepareOutputPath(cmd.topology_file, "--topology");
   const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
   const Actor& actor = *loaded;
   const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
   if (rows.empty()) {
     ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
   }
-  // Check the output path before the long work.
-  const SequenceFormat format = SequenceFormatFromPath(cmd.out);
-  (void)format;
   std::vector<JawFrame> jaw_rows;
   if (!cmd.jaw_file.empty()) {
     jaw_rows = ReadJawCsv(cmd.jaw_file);
@@ -153,7 +174,16 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
     spdlog::warn("no --jaw given: solving with the zero jaw pose");
   }
   const DenseSequence input = MakeDenseSequence(
-      rows, cmd.jaw_file.empty() ? nullptr : &jaw_rows, cmd.jaw_file);
+      rows, cmd.bundles_file, cmd.jaw_file.empty() ? nullptr : &jaw_rows,
+      cmd.jaw_file, actor, cmd.options.input);
+  // A sequence with no frame to solve is an input error, not an output of
+  // repeated neutrals.
+  if (std::all_of(input.frame_errors.begin(), input.frame_errors.end(),
+                  [](const std::string& e) { return !e.empty(); })) {
+    ThrowInputError(cmd.jaw_file.empty() ? cmd.bundles_file : cmd.jaw_file, 0,
+                    "no frame can be solved (frame {}: {})", input.first_frame,
+                    input.frame_errors.front());
+  }
 
   StageTimer timer("solve " + cmd.options.method);
   MethodSolvers solvers(actor, cmd.options.methods,
@@ -162,12 +192,12 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   SolveResult result =
       solvers.Solve(cmd.options.method, input.frames, input.jaw,
                     input.frame_errors);
+  if (result.summary.bad_frames >= static_cast<int>(result.frames.size())) {
+    ThrowInputError(cmd.bundles_file, 0,
+                    "no frame could be solved (frame {}: {}); nothing written",
+                    result.frames.front().frame, result.frames.front().reason);
+  }
 
-  std::filesystem::path out_path(cmd.out);
-  const std::filesystem::path parent =
-      out_path.has_parent_path() ? out_path.parent_path()
-                                 : std::filesystem::path(".");
-  EnsureDirectory(parent);
   MeshSequence seq;
   seq.frames = std::move(result.meshes);
   seq.start_frame = input.first_frame;
@@ -179,7 +209,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   if (!cmd.diagnostics_file.empty()) {
     WriteFileAtomic(cmd.diagnostics_file,
                     Diagnostics(actor, cmd.options.method,
-                                solvers.lgi_model(), result)
+                                solvers.lgi_model(), result, input)
                             .dump(1) +
                         "\n");
   }

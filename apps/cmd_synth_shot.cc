@@ -4,7 +4,10 @@
 // videos (cam0.mkv, cam1.mkv, or PNG folders), calibration.yaml, the ground
 // truth (dots_2d.csv, tags_2d.csv, bundles.csv, bundles_helmet.csv,
 // head_from_helmet.csv, jaw.csv, truth.pc2 + neutral.obj), contact_sheet.png
-// and options_used.yaml (docs/formats.md, "Shot folder").
+// and options_used.yaml (docs/formats.md, "Shot folder"). SHOT is written
+// whole (a temporary folder renamed at the end); a non-empty folder that
+// `hmc synth shot` did not write, or one inside an actor package, is
+// refused.
 #include <memory>
 #include <string>
 
@@ -12,6 +15,7 @@
 
 #include "apps/command.h"
 #include "core/actor.h"
+#include "core/file_util.h"
 #include "core/logging.h"
 #include "synth/face_model.h"
 #include "synth/footage_shot.h"
@@ -34,8 +38,12 @@ HMC_COMMAND(SynthShot, "synth", "shot",
     RequireValid(*options, "synth shot");
     StageTimer timer("synth shot");
     const SynthPackage package = LoadSynthPackage(*actor_dir);
-    const SynthShotSummary summary =
-        RunSynthShot(*package.model, package.actor, *options, *out);
+    // Written whole: a re-run never leaves an earlier run's files behind
+    // (docs/reliability.md).
+    SynthShotSummary summary;
+    WriteFolderAtomic(*out, "hmc synth shot", [&](const std::filesystem::path& dir) {
+      summary = RunSynthShot(*package.model, package.actor, *options, dir);
+    });
     spdlog::info("synth shot: {} -> {}", summary.BriefReport(), *out);
     return 0;
   };

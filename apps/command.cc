@@ -111,12 +111,7 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string con
 void OptionBinding::Apply() {
   if (!config_file_.empty() && config_section_.empty()) fields_.LoadYamlFile(config_file_);
   if (!config_file_.empty() && !config_section_.empty()) {
-    YAML::Node root;
-    try {
-      root = YAML::LoadFile(config_file_);
-    } catch (const YAML::Exception& e) {
-      ThrowInputError(config_file_, e.mark.line + 1, "not valid YAML: {}", e.msg);
-    }
+    const YAML::Node root = hmc::LoadYamlFile(config_file_);
     if (root.IsMap() && root[config_section_]) {
       fields_.LoadYaml(root[config_section_], config_file_);
     }

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 namespace hmc {
@@ -56,20 +58,169 @@ void SolveSummary::Count(const FrameSolve& frame) {
   }
 }
 
+void SequenceInputOptions::Register(OptionFields* fields) {
+  fields->SetGroup("input");
+  fields->Add("max_frame_gap", &max_frame_gap,
+              "most missing frames in a row between two frames of "
+              "bundles.csv; a larger gap is an input error (frames)");
+  fields->Add("outlier_margin_mm", &outlier_margin_mm,
+              "a bundle farther than this outside the box of the actor's "
+              "dataset is an outlier: flagged, dropped from its frame (mm)");
+  fields->Add("jaw_open_deg", &jaw_open_deg,
+              "[min, max] of a jaw pose's open_deg; outside: the frame is "
+              "flagged bad (degrees)");
+  fields->Add("jaw_lateral_max_deg", &jaw_lateral_max_deg,
+              "largest |lateral_deg| of a jaw pose; beyond: the frame is "
+              "flagged bad (degrees)");
+  fields->Add("jaw_protrude_max_mm", &jaw_protrude_max_mm,
+              "largest |protrude_mm| of a jaw pose; beyond: the frame is "
+              "flagged bad (mm)");
+  fields->SetGroup("");
+}
+
+bool SequenceInputOptions::Check() const {
+  CHECK_OPTION_GE(max_frame_gap, 0);
+  CHECK_OPTION_IN(outlier_margin_mm, 0.0, 1e6);
+  CHECK_OPTION_EQ(jaw_open_deg.size(), 2u);
+  CHECK_OPTION_IN(jaw_open_deg[0], -180.0, 180.0);
+  CHECK_OPTION_IN(jaw_open_deg[1], jaw_open_deg[0], 180.0);
+  CHECK_OPTION_IN(jaw_lateral_max_deg, 0.0, 180.0);
+  CHECK_OPTION_IN(jaw_protrude_max_mm, 0.0, 1000.0);
+  return true;
+}
+
+std::string JawPoseRangeError(const JawPose& pose,
+                              const SequenceInputOptions& options) {
+  if (!(pose.open_deg >= options.jaw_open_deg[0] &&
+        pose.open_deg <= options.jaw_open_deg[1])) {
+    return fmt::format(
+        "jaw pose out of range: open_deg {} outside [{}, {}] "
+        "(input.jaw_open_deg)",
+        pose.open_deg, options.jaw_open_deg[0], options.jaw_open_deg[1]);
+  }
+  if (!(std::abs(pose.lateral_deg) <= options.jaw_lateral_max_deg)) {
+    return fmt::format(
+        "jaw pose out of range: |lateral_deg| {} > {} "
+        "(input.jaw_lateral_max_deg)",
+        std::abs(pose.lateral_deg), options.jaw_lateral_max_deg);
+  }
+  if (!(std::abs(pose.protrude_mm) <= options.jaw_protrude_max_mm)) {
+    return fmt::format(
+        "jaw pose out of range: |protrude_mm| {} > {} "
+        "(input.jaw_protrude_max_mm)",
+        std::abs(pose.protrude_mm), options.jaw_protrude_max_mm);
+  }
+  return "";
+}
+
+namespace {
+
+// The box of every position the actor's dataset holds: the neutral and
+// every shape (neutral + displacement), in mm.
+Eigen::Matrix<double, 2, 3> DatasetBox(const Actor& actor) {
+  const MatX3d& v = actor.neutral.V;
+  Eigen::RowVector3d lo = v.colwise().minCoeff();
+  Eigen::RowVector3d hi = v.colwise().maxCoeff();
+  for (const Shape& shape : actor.shapes) {
+    const MatX3d p = v + shape.displacement;
+    lo = lo.cwiseMin(p.colwise().minCoeff());
+    hi = hi.cwiseMax(p.colwise().maxCoeff());
+  }
+  Eigen::Matrix<double, 2, 3> box;
+  box.row(0) = lo;
+  box.row(1) = hi;
+  return box;
+}
+
+}  // namespace
+
 DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
+                                const std::string& bundles_name,
                                 const std::vector<JawFrame>* jaw,
-                                const std::string& jaw_name) {
+                                const std::string& jaw_name,
+                                const Actor& actor,
+                                const SequenceInputOptions& options) {
   HMC_CHECK(!rows.empty());
+  // Frames are labels: a gap is decided on before anything is allocated
+  // (64-bit arithmetic, frame numbers span the whole int range).
+  for (size_t i = 1; i < rows.size(); ++i) {
+    const int64_t missing = static_cast<int64_t>(rows[i].frame) -
+                            static_cast<int64_t>(rows[i - 1].frame) - 1;
+    if (missing > options.max_frame_gap) {
+      ThrowInputError(bundles_name, 0,
+                      "frames {} and {} are {} missing frames apart, more "
+                      "than input.max_frame_gap = {} (a stray frame number?)",
+                      rows[i - 1].frame, rows[i].frame, missing,
+                      options.max_frame_gap);
+    }
+  }
+  const int64_t span = static_cast<int64_t>(rows.back().frame) - rows.front().frame + 1;
+  if (span > (int64_t{1} << 30)) {
+    ThrowInputError(bundles_name, 0, "frames {} to {}: more than 2^30 frames", rows.front().frame,
+                    rows.back().frame);
+  }
   DenseSequence d;
   d.first_frame = rows.front().frame;
-  const int n = rows.back().frame - d.first_frame + 1;
+  const int n = static_cast<int>(span);
   d.frames.resize(n);
   d.jaw.resize(n);
+  d.outliers.resize(n);
   d.frame_errors.assign(n, "no bundles in this frame");
   for (int i = 0; i < n; ++i) d.frames[i].frame = d.first_frame + i;
+
+  const Eigen::Matrix<double, 2, 3> box = DatasetBox(actor);
+  const Eigen::RowVector3d lo = box.row(0).array() - options.outlier_margin_mm;
+  const Eigen::RowVector3d hi = box.row(1).array() + options.outlier_margin_mm;
+  std::set<std::string> known, unknown;
+  for (const Marker& marker : actor.markers) known.insert(marker.name);
+  std::string first_outlier;
   for (const BundleFrame& row : rows) {
-    d.frames[row.frame - d.first_frame] = row;
-    d.frame_errors[row.frame - d.first_frame].clear();
+    const int i = row.frame - d.first_frame;
+    BundleFrame& frame = d.frames[i];
+    frame = row;
+    d.frame_errors[i].clear();
+    for (auto it = frame.bundles.begin(); it != frame.bundles.end();) {
+      const Vec3& p = it->second;
+      if (!known.count(it->first)) {
+        unknown.insert(it->first);
+        ++d.unknown_rows;
+        ++it;
+        continue;
+      }
+      bool inside = true;
+      for (int axis = 0; axis < 3; ++axis) {
+        inside = inside && p[axis] >= lo[axis] && p[axis] <= hi[axis];
+      }
+      if (inside) {
+        ++it;
+        continue;
+      }
+      if (first_outlier.empty()) {
+        first_outlier = fmt::format("frame {} marker {} at ({}, {}, {})",
+                                    row.frame, it->first, p.x(), p.y(),
+                                    p.z());
+      }
+      d.outliers[i].push_back(it->first);
+      ++d.num_outliers;
+      it = frame.bundles.erase(it);
+    }
+  }
+  d.unknown_markers.assign(unknown.begin(), unknown.end());
+  if (d.num_outliers > 0) {
+    spdlog::warn(
+        "{}: {} bundle(s) outside the actor's reach (its dataset's box "
+        "[{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] mm plus "
+        "input.outlier_margin_mm = {}): dropped from their frames and "
+        "filled like missing markers; first: {}",
+        bundles_name, d.num_outliers, box(0, 0), box(1, 0), box(0, 1),
+        box(1, 1), box(0, 2), box(1, 2), options.outlier_margin_mm,
+        first_outlier);
+  }
+  if (!d.unknown_markers.empty()) {
+    spdlog::warn("{}: {} row(s) name {} marker(s) the actor does not have "
+                 "(ignored): {}",
+                 bundles_name, d.unknown_rows, d.unknown_markers.size(),
+                 fmt::join(d.unknown_markers, ", "));
   }
   if (jaw) {
     std::map<int, JawPose> by_frame;
@@ -78,6 +229,11 @@ DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
       const auto it = by_frame.find(d.frames[i].frame);
       if (it != by_frame.end()) {
         d.jaw[i] = it->second;
+        const std::string range = JawPoseRangeError(it->second, options);
+        if (!range.empty() && d.frame_errors[i].empty()) {
+          d.frame_errors[i] = range + " in " + jaw_name;
+          d.jaw[i] = JawPose();  // never skin with it, even a filled frame
+        }
       } else if (d.frame_errors[i].empty()) {
         d.frame_errors[i] = "no jaw pose for this frame in " + jaw_name;
       }

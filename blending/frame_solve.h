@@ -11,10 +11,12 @@
 #include <utility>
 #include <vector>
 
+#include "core/actor.h"
 #include "core/frame_data.h"
 #include "core/frame_sequence.h"
 #include "core/jaw.h"
 #include "core/mesh.h"
+#include "core/options.h"
 
 namespace hmc {
 
@@ -82,22 +84,60 @@ struct SolveResult {
   MethodReport report;
 };
 
+// What a solve accepts from bundles.csv and jaw.csv (docs/reliability.md):
+// a stray frame number would make the dense range below enormous, a bundle
+// far outside what the actor can reach would be taken as data (and lift the
+// robust fit's noise estimate), and an impossible jaw pose would skin the
+// neutral off the face. Group "input".
+struct SequenceInputOptions {
+  int max_frame_gap = 1000;  // most missing frames in a row between two
+                             // frames of bundles.csv; a larger gap is an
+                             // input error (decided before any allocation)
+  double outlier_margin_mm = 100.0;  // a bundle farther than this outside
+                                     // the box of the actor's dataset
+                                     // (neutral and every shape) is an
+                                     // outlier: flagged, dropped from its
+                                     // frame (filled like a missing marker)
+  std::vector<double> jaw_open_deg = {-20.0, 60.0};  // [min, max] of open_deg
+  double jaw_lateral_max_deg = 30.0;  // |lateral_deg| at most this
+  double jaw_protrude_max_mm = 30.0;  // |protrude_mm| at most this
+
+  void Register(OptionFields* fields);
+  bool Check() const;
+};
+
 // A solve's input over a dense frame range, so the output stays aligned
 // with frame numbers: one entry per frame number from the first to the last
 // of bundles.csv. A frame without rows ("no bundles in this frame") or, when
 // a jaw file is given, without a jaw pose ("no jaw pose for this frame in
-// <jaw_name>") is marked bad by its frame_errors entry.
+// <jaw_name>") or with a jaw pose outside the options' range is marked bad
+// by its frame_errors entry. Outlier bundles are removed from their frame
+// and listed in `outliers` (one list of marker names per frame).
 struct DenseSequence {
   int first_frame = 0;
   std::vector<BundleFrame> frames;
   std::vector<JawPose> jaw;  // the zero pose without a jaw file
   std::vector<std::string> frame_errors;  // empty string: not known bad
+  std::vector<std::vector<std::string>> outliers;  // per frame
+  int num_outliers = 0;
+  std::vector<std::string> unknown_markers;  // names not in the actor
+  int unknown_rows = 0;                      // rows naming them
 };
-// rows: bundles.csv's frames, sorted by frame number, not empty; jaw:
-// jaw.csv's rows, or nullptr without a jaw file.
+// rows: bundles.csv's frames (bundles_name: the file, for messages), sorted
+// by frame number, not empty; jaw: jaw.csv's rows, or nullptr without a jaw
+// file. Throws InputError naming bundles_name when two consecutive frames
+// are more than options.max_frame_gap apart. Warns once about outliers and
+// once about unknown marker names (with the names and the count).
 DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
+                                const std::string& bundles_name,
                                 const std::vector<JawFrame>* jaw,
-                                const std::string& jaw_name);
+                                const std::string& jaw_name,
+                                const Actor& actor,
+                                const SequenceInputOptions& options);
+
+// "" when `pose` is inside the options' range, else what is out of range.
+std::string JawPoseRangeError(const JawPose& pose,
+                              const SequenceInputOptions& options);
 
 // Step 1 of the sequence driver for a solver: result->frames gets one
 // FrameSolve per frame; solve(int f, const JawPose& pose, FrameSolve* out)

@@ -34,22 +34,14 @@ void LgiRbfOptions::Register(OptionFields* fields) {
 }
 
 bool LgiRbfOptions::Check() const {
-  if (!(sigma_mm >= 0) || !std::isfinite(sigma_mm)) {
-    spdlog::error("lgi_rbf options: sigma_mm must be >= 0 and finite");
-    return false;
-  }
-  if (!(sigma_scale > 0) || !std::isfinite(sigma_scale)) {
-    spdlog::error("lgi_rbf options: sigma_scale must be > 0 and finite");
-    return false;
-  }
-  if (!(ridge >= 0) || !std::isfinite(ridge)) {
-    spdlog::error("lgi_rbf options: ridge must be >= 0 and finite");
-    return false;
-  }
-  if (!(cutoff > 0 && cutoff < 1)) {
-    spdlog::error("lgi_rbf options: cutoff must be in (0, 1)");
-    return false;
-  }
+  CHECK_OPTION_GE(sigma_mm, 0.0);
+  CHECK_OPTION(std::isfinite(sigma_mm));
+  CHECK_OPTION_GT(sigma_scale, 0.0);
+  CHECK_OPTION(std::isfinite(sigma_scale));
+  CHECK_OPTION_GE(ridge, 0.0);
+  CHECK_OPTION(std::isfinite(ridge));
+  CHECK_OPTION_GT(cutoff, 0.0);
+  CHECK_OPTION_LT(cutoff, 1.0);
   return true;
 }
 

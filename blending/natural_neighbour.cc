@@ -23,14 +23,8 @@ void NaturalNeighbourOptions::Register(OptionFields* fields) {
 }
 
 bool NaturalNeighbourOptions::Check() const {
-  if (domain != "uv" && domain != "geodesic") {
-    spdlog::error("domain must be 'uv' or 'geodesic', not '{}'", domain);
-    return false;
-  }
-  if (uv_resolution < 16 || uv_resolution > 16384) {
-    spdlog::error("uv_resolution must be in [16, 16384], not {}", uv_resolution);
-    return false;
-  }
+  CHECK_OPTION(domain == "uv" || domain == "geodesic");
+  CHECK_OPTION_IN(uv_resolution, 16, 16384);
   return true;
 }
 

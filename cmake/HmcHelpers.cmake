@@ -5,8 +5,19 @@ set(HMC_WARNING_FLAGS -Wall -Wextra -Werror)
 set(HMC_SANITIZER_FLAGS -fsanitize=address,undefined -fno-omit-frame-pointer
     -fno-sanitize-recover=undefined)
 
+# HMC_FUZZ (clang): coverage for libFuzzer plus ASan/UBSan in every target;
+# warnings stay on but are not errors (the gate is the g++ build).
+set(HMC_FUZZ_FLAGS -fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer
+    -fno-sanitize-recover=undefined)
+if(HMC_FUZZ)
+  set(HMC_WARNING_FLAGS -Wall -Wextra)
+endif()
+
 function(hmc_target_common target)
   target_compile_options(${target} PRIVATE ${HMC_WARNING_FLAGS})
+  if(HMC_FUZZ)
+    target_compile_options(${target} PRIVATE ${HMC_FUZZ_FLAGS})
+  endif()
   if(HMC_SANITIZE)
     target_compile_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})
     target_link_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})

@@ -210,6 +210,15 @@ void ValidateActor(const Actor& actor, const fs::path& origin) {
          mesh.NumFaces());
   }
   if (!mesh.V.allFinite()) ThrowInputError(origin, 0, "the neutral has a non-finite vertex position");
+  // Magnitudes the solve can square and sum (docs/reliability.md).
+  auto require_sane = [&](const MatX3d& m, const std::string& what) {
+    Eigen::Index row = 0, col = 0;
+    if (m.rows() > 0 && m.cwiseAbs().maxCoeff(&row, &col) > kMaxCoordinateMm) {
+      ThrowInputError(origin, 0, "{} of vertex {} is {} mm: beyond the sane bound of {} mm", what,
+                      row, m(row, col), kMaxCoordinateMm);
+    }
+  };
+  require_sane(mesh.V, "the neutral position");
   if (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= num_vertices) {
     ThrowInputError(origin, 0, "a neutral triangle refers to a vertex outside 0..{}", num_vertices - 1);
   }
@@ -235,6 +244,7 @@ void ValidateActor(const Actor& actor, const fs::path& origin) {
     if (!shape.displacement.allFinite()) {
       ThrowInputError(origin, 0, "shape '{}' has a non-finite displacement", shape.name);
     }
+    require_sane(shape.displacement, "shape '" + shape.name + "': the displacement");
     const auto jaw = shape.jaw.ToArray();
     for (const double value : jaw) {
       if (!std::isfinite(value)) ThrowInputError(origin, 0, "shape '{}' has a non-finite jaw pose", shape.name);
@@ -250,6 +260,9 @@ void ValidateActor(const Actor& actor, const fs::path& origin) {
     }
   }
 
+  if (actor.markers.empty()) {
+    ThrowInputError(origin, 0, "the actor has no markers (a solve needs at least one)");
+  }
   names.clear();
   for (const Marker& marker : actor.markers) {
     if (!IsValidName(marker.name)) {
@@ -292,7 +305,9 @@ void ValidateActor(const Actor& actor, const fs::path& origin) {
 
   if (actor.jaw_rig) {
     const JawRig& rig = *actor.jaw_rig;
-    if (!rig.pivot.allFinite()) ThrowInputError(origin, 0, "the jaw rig pivot is not finite");
+    if (!rig.pivot.allFinite() || rig.pivot.cwiseAbs().maxCoeff() > kMaxCoordinateMm) {
+      ThrowInputError(origin, 0, "the jaw rig pivot is not finite or beyond {} mm", kMaxCoordinateMm);
+    }
     const Mat3 gram = rig.axes.transpose() * rig.axes;
     if (!rig.axes.allFinite() ||
         (gram - Mat3::Identity()).cwiseAbs().maxCoeff() > kAxesTolerance ||

@@ -29,6 +29,10 @@ constexpr double kWeightTolerance = 1e-6;
 // How far the jaw axes may be from orthonormal before they are refused
 // (they are then snapped to the nearest rotation).
 constexpr double kAxesTolerance = 1e-4;
+// Largest |coordinate| of a neutral vertex, a shape displacement or the jaw
+// pivot (mm): 100 m. A face is 0.2 m; beyond this a value is a typo or an
+// overflow whose squares are no longer finite in the solve.
+constexpr double kMaxCoordinateMm = 1e5;
 
 // 64-bit FNV-1a (Fowler, Noll, Vo), applied to 8-byte words
 // instead of bytes (8x fewer multiplies; the tail is hashed bytewise):

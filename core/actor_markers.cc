@@ -246,6 +246,9 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
   if (!have_header) {
     ThrowInputError(file, 0, "empty: expected the header '{}'", kMarkersHeader);
   }
+  if (markers.empty()) {
+    ThrowInputError(file, 0, "no markers after the header (a solve needs at least one)");
+  }
   return markers;
 }
 

@@ -16,6 +16,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/options.h"
 #include "core/logging.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
@@ -121,13 +122,7 @@ std::vector<std::string> GetTags(const YAML::Node& node, const fs::path& file,
 }  // namespace
 
 PackageEntry ParseActorYaml(const std::string& text, const fs::path& file) {
-  YAML::Node root_node;
-  try {
-    root_node = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0,
-                    "not valid YAML: {}", e.msg);
-  }
+  const YAML::Node root_node = ParseYaml(text, file);
   const YAML::Node& root = root_node;
   if (!root.IsMap()) ThrowInputError(file, 0, "must be a YAML mapping of keys");
   CheckKeys(root, file, "actor.yaml",

@@ -1,5 +1,6 @@
 #include "core/calibration.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -7,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/options.h"
 
 namespace hmc {
 
@@ -82,8 +84,41 @@ void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig) {
   WriteFileAtomic(path, fs.releaseAndGetString());
 }
 
+namespace {
+
+HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path);
+
+}  // namespace
+
 HelmetRig ReadCalibration(const std::filesystem::path& path) {
+  // OpenCV throws on malformed nodes (an `!!opencv-matrix` without `dt`,
+  // found by fuzzing: docs/reliability.md); that is bad input, not a crash.
+  try {
+    return ReadCalibrationFileStorage(path);
+  } catch (const cv::Exception& e) {
+    ThrowInputError(path, 0, "not a valid calibration file: {}", e.err);
+  }
+}
+
+namespace {
+
+HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path) {
   const std::string text = ReadFile(path);
+  {
+    // A key given twice is refused like in every YAML hmc reads
+    // (docs/reliability.md): yaml-cpp sees the text once OpenCV's
+    // `%YAML:1.0` directive is blanked (line numbers kept); text it cannot
+    // parse is left to FileStorage's own errors.
+    std::string yaml = text;
+    if (yaml.rfind("%YAML:", 0) == 0) yaml.erase(0, std::min(yaml.find('\n'), yaml.size()));
+    bool parsed = true;
+    try {
+      YAML::Load(yaml);
+    } catch (const YAML::Exception&) {
+      parsed = false;
+    }
+    if (parsed) ParseYaml(yaml, path);
+  }
   cv::FileStorage fs;
   try {
     fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
@@ -151,5 +186,7 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
   }
   return rig;
 }
+
+}  // namespace
 
 }  // namespace hmc

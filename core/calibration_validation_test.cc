@@ -1,5 +1,6 @@
 // calibration.yaml refusals: an incomplete or inconsistent file is refused
 // with the file and the key named (core/calibration.h).
+#include <cstdlib>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -52,6 +53,34 @@ void ExpectRefused(const std::filesystem::path& dir, const std::string& text,
     EXPECT_NE(what.find("broken_calibration.yaml"), std::string::npos) << what;
     EXPECT_NE(what.find(key), std::string::npos) << what;
   }
+}
+
+// Issue 24, item 10: a key given twice (FileStorage alone keeps one of
+// them) is refused with its line, at the top level and inside a camera.
+TEST(CalibrationValidationTest, RepeatedKeysAreRefused) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ASSERT_NE(valid.find("units: mm\n"), std::string::npos) << valid;
+  ExpectRefused(dir.path(), Replace(valid, "units: mm\n", "units: mm\nunits: cm\n"),
+                "given twice");
+  ASSERT_NE(valid.find("image_width: 640\n"), std::string::npos) << valid;
+  const size_t at = valid.find("image_width: 640\n");
+  const size_t line_start = valid.rfind('\n', at) + 1;
+  const std::string indent = valid.substr(line_start, at - line_start);
+  ExpectRefused(dir.path(),
+                Replace(valid, "image_width: 640\n",
+                        "image_width: 640\n" + indent + "image_width: 64\n"),
+                "given twice");
+}
+
+// Found by fuzzing (docs/reliability.md): a matrix node OpenCV cannot read
+// (no usable `dt`) threw a raw cv::Exception; it is an InputError.
+TEST(CalibrationValidationTest, FuzzedMalformedMatrixIsAnInputError) {
+  const char* root = std::getenv("HMC_SOURCE_DIR");
+  const std::filesystem::path file = std::filesystem::path(root ? root : ".") /
+                                     "tests/fixtures/fuzz_crashes/calibration_matrix_without_dt.yaml";
+  ASSERT_TRUE(std::filesystem::exists(file));
+  EXPECT_THROW(ReadCalibration(file), InputError);
 }
 
 TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {

@@ -140,4 +140,112 @@ void EnsureDirectory(const std::filesystem::path& dir) {
   if (error) ThrowInputError(dir, 0, "cannot create folder: {}", error.message());
 }
 
+void PrepareOutputPath(const fs::path& path, const std::string& what, bool folder) {
+  if (path.empty()) ThrowInputError(path, 0, "{}: an empty path", what);
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (!folder && fs::is_directory(status)) {
+    ThrowInputError(path, 0, "{}: is a folder, not a file to write", what);
+  }
+  if (folder && fs::exists(status) && !fs::is_directory(status)) {
+    ThrowInputError(path, 0, "{}: exists and is not a folder", what);
+  }
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : ".";
+  std::error_code error;
+  fs::create_directories(dir, error);
+  if (error) {
+    ThrowInputError(path, 0, "{}: cannot create its folder {}: {}", what, dir.string(),
+                    error.message());
+  }
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    ThrowInputError(path, 0, "{}: folder {} cannot be written: {}", what, dir.string(),
+                    std::strerror(errno));
+  }
+}
+
+fs::path EnclosingActorPackage(const fs::path& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  if (ec) return {};
+  for (; !p.empty(); p = p.parent_path()) {
+    if (fs::is_regular_file(p / "actor.yaml", ec)) return p;
+    if (p == p.parent_path()) break;
+  }
+  return {};
+}
+
+namespace {
+
+constexpr const char* kOutputMark = ".hmc_output";
+
+// Removes `.NAME.tmp.PID.N` / `.NAME.old.PID.N` folders of killed runs.
+void RemoveStaleFolders(const fs::path& parent, const std::string& name) {
+  std::error_code ec;
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string file = it->path().filename().string();
+    for (const std::string kind : {".tmp.", ".old."}) {
+      const std::string prefix = "." + name + kind;
+      if (file.compare(0, prefix.size(), prefix) != 0) continue;
+      const long pid = std::strtol(file.c_str() + prefix.size(), nullptr, 10);
+      if (pid <= 0 || pid == getpid()) continue;
+      if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+      std::error_code ignored;
+      fs::remove_all(it->path(), ignored);
+    }
+  }
+}
+
+}  // namespace
+
+void WriteFolderAtomic(const fs::path& dir_in, const std::string& what,
+                       const std::function<void(const fs::path&)>& write) {
+  static std::atomic<int> counter{0};
+  fs::path dir = dir_in;
+  if (dir.filename().empty()) dir = dir.parent_path();  // "out/"
+  PrepareOutputPath(dir, what, true);
+  const fs::path package = EnclosingActorPackage(dir.has_parent_path() ? dir.parent_path() : ".");
+  if (!package.empty()) {
+    ThrowInputError(dir, 0, "{}: refusing to write inside the actor package {}", what,
+                    package.string());
+  }
+  std::error_code ec;
+  const bool exists = fs::exists(dir, ec);
+  if (exists && !fs::is_empty(dir, ec) &&
+      !(fs::is_regular_file(dir / kOutputMark, ec) && ReadFile(dir / kOutputMark) == what + "\n")) {
+    ThrowInputError(dir, 0,
+                    "{}: refusing to replace a folder that is not empty and was not written "
+                    "by {} (remove it, or choose another --out)",
+                    what, what);
+  }
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : ".";
+  const std::string name = dir.filename().string();
+  RemoveStaleFolders(parent, name);
+  const int n = counter++;
+  const fs::path temp = parent / fmt::format(".{}.tmp.{}.{}", name, getpid(), n);
+  const fs::path old = parent / fmt::format(".{}.old.{}.{}", name, getpid(), n);
+  fs::remove_all(temp, ec);
+  EnsureDirectory(temp);
+  try {
+    write(temp);
+    WriteFileAtomic(temp / kOutputMark, what + "\n");
+    std::error_code error;
+    if (exists) {
+      fs::rename(dir, old, error);
+      if (error) ThrowInputError(dir, 0, "cannot move the previous folder aside: {}", error.message());
+    }
+    fs::rename(temp, dir, error);
+    if (error) {
+      std::error_code ignored;
+      if (exists) fs::rename(old, dir, ignored);
+      ThrowInputError(dir, 0, "cannot rename the temporary folder: {}", error.message());
+    }
+    SyncPath(parent, true);
+    if (exists) fs::remove_all(old, ec);
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove_all(temp, ignored);
+    throw;
+  }
+}
+
 }  // namespace hmc

@@ -37,4 +37,29 @@ std::string DescribeUnreadable(const std::filesystem::path& path);
 // Creates `dir` (and parents); throws InputError if it cannot.
 void EnsureDirectory(const std::filesystem::path& dir);
 
+// Checks an output path before any work is done (docs/reliability.md):
+// creates its folder (and parents), and throws InputError naming `path` and
+// `what` (the flag: "--diagnostics") if that folder cannot be created or
+// written, or if `path` is an existing folder (a file output) or an
+// existing file (a folder output, folder = true).
+void PrepareOutputPath(const std::filesystem::path& path,
+                       const std::string& what, bool folder = false);
+
+// The actor package (a folder holding actor.yaml) that `path` is or lies
+// inside, or "" when none: outputs are never written into a package.
+std::filesystem::path EnclosingActorPackage(const std::filesystem::path& path);
+
+// Writes a whole folder or nothing: write(tmp) fills a fresh temporary
+// folder beside `dir` (`.NAME.tmp.PID.N`), which is then renamed to `dir`
+// (a previous `dir` is removed only after the new one is complete). `dir`
+// must be missing, empty, or a folder this function wrote before for the
+// same `what` (it holds `.hmc_output` naming it); anything else, and a
+// `dir` inside an actor package, is refused with an InputError before write
+// runs. Stale
+// temporary folders of killed runs are removed. what: the command
+// ("hmc synth shot").
+void WriteFolderAtomic(const std::filesystem::path& dir,
+                       const std::string& what,
+                       const std::function<void(const std::filesystem::path&)>& write);
+
 }  // namespace hmc

@@ -113,5 +113,59 @@ TEST(FileUtilTest, StaleTemporariesOfTheSameOutputAreRemoved) {
   fs::remove_all(dir);
 }
 
+// issue 24 item 5: a folder is written whole or not at all; a re-run
+// replaces it entirely; folders hmc did not write, other commands' folders
+// and folders inside an actor package are refused before anything runs.
+TEST(FileUtilTest, FoldersAreWrittenWholeOrRefused) {
+  const fs::path dir = FreshDir("hmc_file_util_folder");
+  const fs::path out = dir / "shot";
+  auto write = [](int n) {
+    return [n](const fs::path& d) {
+      for (int i = 0; i < n; ++i) WriteFileAtomic(d / fmt::format("f{}.txt", i), "x");
+    };
+  };
+  WriteFolderAtomic(out, "hmc test", write(3));
+  EXPECT_TRUE(fs::exists(out / "f2.txt"));
+  WriteFolderAtomic(out, "hmc test", write(1));
+  EXPECT_TRUE(fs::exists(out / "f0.txt"));
+  EXPECT_FALSE(fs::exists(out / "f1.txt"));  // nothing of the earlier run
+  // A failing write leaves the previous folder and no temporary.
+  EXPECT_THROW(WriteFolderAtomic(out, "hmc test",
+                                 [](const fs::path& d) {
+                                   WriteFileAtomic(d / "half.txt", "x");
+                                   throw InputError("failed half way");
+                                 }),
+               InputError);
+  EXPECT_TRUE(fs::exists(out / "f0.txt"));
+  EXPECT_FALSE(fs::exists(out / "half.txt"));
+  int entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
+  EXPECT_EQ(entries, 1);
+  // Refusals, decided before `write` runs.
+  bool ran = false;
+  auto mark = [&](const fs::path&) { ran = true; };
+  EXPECT_THROW(WriteFolderAtomic(out, "hmc other", mark), InputError);
+  fs::create_directories(dir / "mine");
+  WriteFileAtomic(dir / "mine" / "notes.txt", "keep");
+  EXPECT_THROW(WriteFolderAtomic(dir / "mine", "hmc test", mark), InputError);
+  WriteFileAtomic(dir / "actor.yaml", "name: a\n");
+  EXPECT_THROW(WriteFolderAtomic(dir / "inside", "hmc test", mark), InputError);
+  EXPECT_FALSE(ran);
+  EXPECT_EQ(ReadFile(dir / "mine" / "notes.txt"), "keep");
+  fs::remove_all(dir);
+}
+
+// issue 24 item 6: output paths are checked, and their folders made, first.
+TEST(FileUtilTest, OutputPathsAreCheckedAndTheirFoldersMade) {
+  const fs::path dir = FreshDir("hmc_file_util_outputs");
+  PrepareOutputPath(dir / "a" / "b" / "d.json", "--diagnostics");
+  EXPECT_TRUE(fs::is_directory(dir / "a" / "b"));
+  EXPECT_THROW(PrepareOutputPath(dir / "a", "--out"), InputError);  // a folder
+  WriteFileAtomic(dir / "file", "x");
+  EXPECT_THROW(PrepareOutputPath(dir / "file", "--out", /*folder=*/true), InputError);
+  EXPECT_THROW(PrepareOutputPath(dir / "file" / "d.json", "--diagnostics"), InputError);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace hmc

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/options.h"
 
 namespace hmc {
 namespace {
@@ -53,12 +54,7 @@ std::string Text(const YAML::Node& node, const std::string& key,
 
 std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path) {
   const std::string text = ReadFile(path);
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(path, e.mark.line + 1, "not YAML: {}", e.msg);
-  }
+  const YAML::Node root = ParseYaml(text, path);
   if (!root.IsMap()) ThrowInputError(path, 0, "a Kalibr camchain is a map of cam0, cam1, ...");
   std::vector<KalibrCamera> chain;
   for (int n = 0;; ++n) {

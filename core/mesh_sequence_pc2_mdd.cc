@@ -97,6 +97,12 @@ MeshSequence ReadPc2(const fs::path& path,
     ThrowInputError(path, 0, "start frame {} is not a whole frame number",
                     start);
   }
+  // Bounded by division first: a lying header's product would overflow
+  // (found by fuzzing, docs/reliability.md).
+  if (int64_t{num_samples} > (std::numeric_limits<int64_t>::max() / 2) / (int64_t{num_points} * 12)) {
+    ThrowInputError(path, 0, "header promises {} samples x {} points, more than the file's {} bytes",
+                    num_samples, num_points, file.size());
+  }
   const int64_t expected =
       kPc2HeaderBytes + int64_t{num_samples} * num_points * 12;
   if (file.size() != expected) {
@@ -232,6 +238,12 @@ MeshSequence ReadMdd(const fs::path& path,
                     num_frames, num_points);
   }
   const int64_t frame_bytes = int64_t{num_points} * 12;
+  // Bounded by division first: a lying header's product would overflow
+  // (found by fuzzing, docs/reliability.md).
+  if (int64_t{num_frames} > (std::numeric_limits<int64_t>::max() / 2) / (frame_bytes + 4)) {
+    ThrowInputError(path, 0, "header promises {} frames x {} points, more than the file's {} bytes",
+                    num_frames, num_points, file.size());
+  }
   const int64_t expected = 8 + int64_t{num_frames} * 4 +
                            int64_t{num_frames} * frame_bytes;
   // Blender's own MDD exporter writes one extra "rest" frame before the

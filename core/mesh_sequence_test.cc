@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -485,6 +486,23 @@ TEST(MeshSequenceTest, FailedWriteKeepsThePreviousOutput) {
   empty.frames.clear();
   EXPECT_THROW(WriteMeshSequence(dir / "empty.mdd", empty), InputError);
   EXPECT_FALSE(fs::exists(dir / "empty.mdd"));
+}
+
+// Found by fuzzing (docs/reliability.md): headers whose sample x point
+// counts overflow int64 when multiplied out (signed overflow, UBSan). They
+// are refused as lying headers, naming the file.
+TEST(MeshSequenceTest, FuzzedHeadersWithOverflowingCountsAreRefused) {
+  const char* root = std::getenv("HMC_SOURCE_DIR");
+  const std::filesystem::path dir =
+      std::filesystem::path(root ? root : ".") / "tests/fixtures/fuzz_crashes";
+  for (const char* name : {"pc2_header_overflow.pc2", "mdd_header_overflow.mdd"}) {
+    try {
+      ReadMeshSequence(dir / name);
+      ADD_FAILURE() << "accepted " << name;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "core/error.h"
@@ -152,6 +153,45 @@ const OptionFields::Field* OptionFields::Find(const std::string& name) const {
   return nullptr;
 }
 
+namespace {
+
+void RefuseDuplicateKeys(const YAML::Node& node, const std::filesystem::path& file) {
+  if (node.IsMap()) {
+    std::map<std::string, int> seen;  // key -> line
+    for (const auto& item : node) {
+      const std::string key = item.first.IsScalar() ? item.first.Scalar() : "";
+      const int line = item.first.Mark().line + 1;
+      if (item.first.IsScalar()) {
+        const auto [it, inserted] = seen.emplace(key, line);
+        if (!inserted) {
+          ThrowInputError(file, line, "key '{}' given twice in one mapping (first on line {})",
+                          key, it->second);
+        }
+      }
+      RefuseDuplicateKeys(item.second, file);
+    }
+  } else if (node.IsSequence()) {
+    for (const auto& item : node) RefuseDuplicateKeys(item, file);
+  }
+}
+
+}  // namespace
+
+YAML::Node ParseYaml(const std::string& text, const std::filesystem::path& file) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    ThrowInputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0, "not valid YAML: {}", e.msg);
+  }
+  RefuseDuplicateKeys(root, file);
+  return root;
+}
+
+YAML::Node LoadYamlFile(const std::filesystem::path& file) {
+  return ParseYaml(ReadFile(file), file);
+}
+
 void OptionFields::LoadYaml(const YAML::Node& root,
                             const std::filesystem::path& file) {
   if (!root || root.IsNull()) return;  // An empty config changes nothing.
@@ -162,13 +202,7 @@ void OptionFields::LoadYamlFile(const std::filesystem::path& file) {
   if (!std::filesystem::exists(file)) {
     ThrowInputError(file, 0, "config file does not exist");
   }
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(file, e.mark.line + 1, "not valid YAML: {}", e.msg);
-  }
-  LoadYaml(root, file);
+  LoadYaml(hmc::LoadYamlFile(file), file);
 }
 
 void OptionFields::Set(const std::string& name, const std::string& value,

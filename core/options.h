@@ -39,6 +39,13 @@
 
 namespace hmc {
 
+// Parses YAML text; `file` names it in messages. Throws InputError with the
+// line for invalid YAML and for a key given twice in any mapping (yaml-cpp
+// would keep the last silently: `method: robust` then `method: lgi`).
+YAML::Node ParseYaml(const std::string& text, const std::filesystem::path& file);
+// ReadFile(file) then ParseYaml.
+YAML::Node LoadYamlFile(const std::filesystem::path& file);
+
 class OptionFields {
  public:
   using Pointer = std::variant<double*, int*, bool*, std::string*,

@@ -23,10 +23,7 @@ void EvalOptions::Register(OptionFields* fields) {
 
 bool EvalOptions::Check() const {
   if (!metrics.Check()) return false;
-  if (uv_resolution < 8 || uv_resolution > 8192) {
-    spdlog::error("uv_resolution must be in [8, 8192]");
-    return false;
-  }
+  CHECK_OPTION_IN(uv_resolution, 8, 8192);
   return picture.Check();
 }
 

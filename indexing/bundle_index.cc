@@ -695,15 +695,26 @@ void BundleIndex::Write(std::ostream& out) const {
   out.write(reinterpret_cast<const char*>(points_.data()),
             static_cast<std::streamsize>(points_.size() * sizeof(double)));
   WritePodVector(out, point_shapes_);
-  WritePodVector(out, simplices_);
+  // Field by field: CloudSimplex has a padding byte (docs/formats.md).
+  WritePod<uint64_t>(out, simplices_.size());
+  for (const CloudSimplex& s : simplices_) {
+    for (const uint16_t corner : s.corner) WritePod(out, corner);
+    WritePod(out, s.size);
+  }
   WritePod(out, num_tets_);
-  WritePod(out, std::array<double, 3>{grid_origin_[0], grid_origin_[1],
-                                      grid_origin_[2]});
+  for (int axis = 0; axis < 3; ++axis) WritePod(out, grid_origin_[axis]);
   WritePod(out, cell_size_);
   WritePod(out, grid_n_);
   WritePodVector(out, cell_start_);
   WritePodVector(out, cell_items_);
-  WritePod(out, stats_);
+  WritePod(out, stats_.points);
+  WritePod(out, stats_.tets_candidate);
+  WritePod(out, stats_.tets_kept);
+  WritePod(out, stats_.triangles_kept);
+  WritePod(out, stats_.edges_kept);
+  WritePod(out, stats_.grid_cells);
+  WritePod(out, stats_.grid_entries);
+  WritePod(out, stats_.memory_bytes);
 }
 
 BundleIndex BundleIndex::Read(std::istream& in) {
@@ -715,15 +726,33 @@ BundleIndex BundleIndex::Read(std::istream& in) {
           static_cast<std::streamsize>(index.points_.size() * sizeof(double)));
   if (!in) throw InputError("index cache: unexpected end of file");
   index.point_shapes_ = ReadPodVector<int>(in);
-  index.simplices_ = ReadPodVector<CloudSimplex>(in);
+  {
+    const uint64_t n = ReadPod<uint64_t>(in);
+    // 9 bytes a simplex; no more than the 16 GiB ReadPodVector allows.
+    if (n > (1ull << 34) / 9) throw InputError("index cache: implausible array size");
+    // Grown as read, so a lying count fails at the end of the file rather
+    // than allocating it first.
+    for (uint64_t i = 0; i < n; ++i) {
+      CloudSimplex s;
+      for (uint16_t& corner : s.corner) corner = ReadPod<uint16_t>(in);
+      s.size = ReadPod<uint8_t>(in);
+      index.simplices_.push_back(s);
+    }
+  }
   index.num_tets_ = ReadPod<int64_t>(in);
-  const auto origin = ReadPod<std::array<double, 3>>(in);
-  index.grid_origin_ = Vec3(origin[0], origin[1], origin[2]);
+  for (int axis = 0; axis < 3; ++axis) index.grid_origin_[axis] = ReadPod<double>(in);
   index.cell_size_ = ReadPod<double>(in);
   index.grid_n_ = ReadPod<std::array<int, 3>>(in);
   index.cell_start_ = ReadPodVector<uint32_t>(in);
   index.cell_items_ = ReadPodVector<uint32_t>(in);
-  index.stats_ = ReadPod<BundleIndexStats>(in);
+  index.stats_.points = ReadPod<int>(in);
+  index.stats_.tets_candidate = ReadPod<int64_t>(in);
+  index.stats_.tets_kept = ReadPod<int64_t>(in);
+  index.stats_.triangles_kept = ReadPod<int64_t>(in);
+  index.stats_.edges_kept = ReadPod<int64_t>(in);
+  index.stats_.grid_cells = ReadPod<std::array<int, 3>>(in);
+  index.stats_.grid_entries = ReadPod<int64_t>(in);
+  index.stats_.memory_bytes = ReadPod<int64_t>(in);
   // Validate what the queries index with, so a corrupt cache cannot read out
   // of bounds.
   const size_t cells =

@@ -30,29 +30,18 @@ void IndexOptions::Register(OptionFields* fields) {
 }
 
 bool IndexOptions::Check() const {
-  auto fail = [](const char* what) {
-    spdlog::error("index options: {}", what);
-    return false;
-  };
-  if (!(merge_mm >= 0)) return fail("merge_mm must be >= 0");
-  if (!(region_tag_mm >= 0)) return fail("region_tag_mm must be >= 0");
-  if (!(min_tet_quality >= 0 && min_tet_quality < 1)) {
-    return fail("min_tet_quality must be in [0, 1)");
-  }
-  if (!(min_triangle_quality >= 0 && min_triangle_quality < 1)) {
-    return fail("min_triangle_quality must be in [0, 1)");
-  }
-  if (!(max_edge_mm >= 0)) return fail("max_edge_mm must be >= 0");
-  if (grid_max_cells < 1 || grid_max_cells > 256) {
-    return fail("grid_max_cells must be in [1, 256]");
-  }
-  if (!(grid_entries_per_element >= 1)) {
-    return fail("grid_entries_per_element must be >= 1");
-  }
-  if (!(inside_tolerance >= 0 && inside_tolerance < 0.1)) {
-    return fail("inside_tolerance must be in [0, 0.1)");
-  }
-  if (!(on_data_mm >= 0)) return fail("on_data_mm must be >= 0");
+  CHECK_OPTION_GE(merge_mm, 0.0);
+  CHECK_OPTION_GE(region_tag_mm, 0.0);
+  CHECK_OPTION_GE(min_tet_quality, 0.0);
+  CHECK_OPTION_LT(min_tet_quality, 1.0);
+  CHECK_OPTION_GE(min_triangle_quality, 0.0);
+  CHECK_OPTION_LT(min_triangle_quality, 1.0);
+  CHECK_OPTION_GE(max_edge_mm, 0.0);
+  CHECK_OPTION_IN(grid_max_cells, 1, 256);
+  CHECK_OPTION_GE(grid_entries_per_element, 1.0);
+  CHECK_OPTION_GE(inside_tolerance, 0.0);
+  CHECK_OPTION_LT(inside_tolerance, 0.1);
+  CHECK_OPTION_GE(on_data_mm, 0.0);
   return true;
 }
 

@@ -12,7 +12,7 @@ namespace hmc {
 namespace {
 
 constexpr char kMagic[8] = {'H', 'M', 'C', 'L', 'G', 'I', 'X', '\0'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  // 2: fields, not padded structs
 
 // max over the region of |b*_a(v) - b*_b(v)| (a or b = -1: the neutral).
 double MaxDifferenceOverRegion(const ShapeData& data,

@@ -15,6 +15,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/hash.h"
+#include "core/options.h"
 #include "core/text.h"
 #include "pipeline/workspace.h"
 #include "tracking/footage_reader.h"
@@ -103,12 +104,7 @@ namespace {
 std::map<std::string, std::string> ReadRunConfig(const std::string& file) {
   std::map<std::string, std::string> sections;
   if (file.empty()) return sections;
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file);
-  } catch (const YAML::Exception& e) {
-    ThrowInputError(file, e.mark.line + 1, "not valid YAML: {}", e.msg);
-  }
+  const YAML::Node root = LoadYamlFile(file);
   if (root.IsNull()) return sections;
   if (!root.IsMap()) ThrowInputError(file, 0, "a run config is a mapping from stage names to options");
   for (const auto& item : root) {

@@ -59,6 +59,18 @@ class Subdivider {
       split[e] = err[e] > tolerance_ && (p.s - q.s).norm() > 0.25 && depth < kMaxDepth;
       num_split += split[e];
     }
+    // Far off the image (beyond it by its sagittas and one image size; a
+    // real lens never projects there): never split, so the work is bounded
+    // by the image size whatever the lens (docs/reliability.md).
+    const double size = camera_.width + camera_.height;
+    const double pad = std::min(std::max({err[0], err[1], err[2]}), size) + size;
+    if (std::max({a.s.x(), b.s.x(), c.s.x()}) < -pad || std::max({a.s.y(), b.s.y(), c.s.y()}) < -pad ||
+        std::min({a.s.x(), b.s.x(), c.s.x()}) > camera_.width + pad ||
+        std::min({a.s.y(), b.s.y(), c.s.y()}) > camera_.height + pad) {
+      out_->tris.push_back({a.ref, b.ref, c.ref});
+      out_->face.push_back(face);
+      return;
+    }
     if (num_split == 0) {
       out_->tris.push_back({a.ref, b.ref, c.ref});
       out_->face.push_back(face);

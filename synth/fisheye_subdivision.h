@@ -20,10 +20,10 @@ namespace hmc {
 // renderer's hot loops; `max_theta` (the camera's MaxTheta) replaces the
 // per-point monotonicity check.
 struct FastFisheye {
-  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta;
+  double fx, fy, cx, cy, k1, k2, k3, k4, max_theta, width, height;
   explicit FastFisheye(const FisheyeCamera& c)
       : fx(c.fx), fy(c.fy), cx(c.cx), cy(c.cy), k1(c.k[0]), k2(c.k[1]), k3(c.k[2]),
-        k4(c.k[3]), max_theta(c.MaxTheta()) {}
+        k4(c.k[3]), max_theta(c.MaxTheta()), width(c.width), height(c.height) {}
   bool Project(const Vec3& p, Vec2* pixel) const {
     const double r = std::sqrt(p.x() * p.x() + p.y() * p.y());
     double scale;

@@ -55,35 +55,20 @@ void SynthShotOptions::Register(OptionFields* fields) {
 }
 
 bool SynthShotOptions::Check() const {
-  bool ok = performance.Check() && rig.Check() && render.Check();
-  if (video != "ffv1" && video != "png" && video != "none") {
-    spdlog::error("synth shot options: video must be ffv1, png or none, got '{}'", video);
-    ok = false;
-  }
-  if (!(bundle_noise_mm >= 0 && bundle_noise_mm <= 50)) {
-    spdlog::error("synth shot options: bundle_noise_mm must be in [0, 50]");
-    ok = false;
-  }
-  if (!(nominal_mm >= 0 && nominal_mm <= 50 && nominal_deg >= 0 && nominal_deg <= 20 &&
-        nominal_focal_pct >= 0 && nominal_focal_pct <= 20)) {
-    spdlog::error("synth shot options: nominal_mm must be in [0, 50], nominal_deg in [0, 20], "
-                  "nominal_focal_pct in [0, 20]");
-    ok = false;
-  }
-  if (knock_frame < 0 || !(knock_mm >= 0 && knock_mm <= 50 && knock_deg >= 0 && knock_deg <= 20)) {
-    spdlog::error("synth shot options: knock_frame must be >= 0, knock_mm in [0, 50], knock_deg "
-                  "in [0, 20]");
-    ok = false;
-  }
-  if (contact_frames < 0 || contact_frames > 32) {
-    spdlog::error("synth shot options: contact_frames must be in [0, 32]");
-    ok = false;
-  }
-  if (!(contact_scale > 0.05 && contact_scale <= 1)) {
-    spdlog::error("synth shot options: contact_scale must be in (0.05, 1]");
-    ok = false;
-  }
-  return ok;
+  if (!performance.Check() || !rig.Check() || !render.Check()) return false;
+  CHECK_OPTION(video == "ffv1" || video == "png" || video == "none");
+  CHECK_OPTION_IN(bundle_noise_mm, 0.0, 50.0);
+  CHECK_OPTION_IN(contact_frames, 0, 32);
+  CHECK_OPTION_GT(contact_scale, 0.05);
+  CHECK_OPTION_LE(contact_scale, 1.0);
+  CHECK_OPTION_IN(threads, 0, 4096);
+  CHECK_OPTION_IN(nominal_mm, 0.0, 50.0);
+  CHECK_OPTION_IN(nominal_deg, 0.0, 20.0);
+  CHECK_OPTION_IN(nominal_focal_pct, 0.0, 20.0);
+  CHECK_OPTION_GE(knock_frame, 0);
+  CHECK_OPTION_IN(knock_mm, 0.0, 50.0);
+  CHECK_OPTION_IN(knock_deg, 0.0, 20.0);
+  return true;
 }
 
 std::string SynthShotSummary::BriefReport() const {

@@ -26,26 +26,24 @@ void HelmetRigOptions::Register(OptionFields* fields) {
 }
 
 bool HelmetRigOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("rig options: {}", message);
-    ok = false;
-  };
-  if (width < 64 || height < 64 || width > 8192 || height > 8192) {
-    fail("width and height must be in [64, 8192]");
-  }
-  if (!(focal_px > 10 && focal_px < 1e5)) fail("focal_px must be in (10, 1e5)");
-  if (!(camera_distance >= 50 && camera_distance <= 1000)) {
-    fail("camera_distance must be in [50, 1000] mm");
-  }
-  if (!(tag_size > 2 && tag_size < 200)) fail("tag_size must be in (2, 200) mm");
-  if (ok) {
-    const double k[4] = {k1, k2, k3, k4};
-    if (!fisheye_internal::IsMonotonicUpTo(k, M_PI / 2)) {
-      fail("k1..k4 must keep the projection monotonic up to 90 degrees off axis");
-    }
-  }
-  return ok;
+  CHECK_OPTION_IN(width, 64, 8192);
+  CHECK_OPTION_IN(height, 64, 8192);
+  CHECK_OPTION_GT(focal_px, 10.0);
+  CHECK_OPTION_LT(focal_px, 1e5);
+  // Kannala-Brandt coefficients of real lenses are well inside [-1, 1]
+  // (docs/calibration.md); beyond, the projection is no lens.
+  CHECK_OPTION_IN(k1, -1.0, 1.0);
+  CHECK_OPTION_IN(k2, -1.0, 1.0);
+  CHECK_OPTION_IN(k3, -1.0, 1.0);
+  CHECK_OPTION_IN(k4, -1.0, 1.0);
+  const double k[4] = {k1, k2, k3, k4};
+  CHECK_OPTION(fisheye_internal::IsMonotonicUpTo(k, M_PI / 2));
+  CHECK_OPTION_IN(camera_distance, 50.0, 1000.0);
+  CHECK_OPTION_IN(upper_camera_y, -1000.0, 1000.0);
+  CHECK_OPTION_IN(lower_camera_y, -1000.0, 1000.0);
+  CHECK_OPTION_GT(tag_size, 2.0);
+  CHECK_OPTION_LT(tag_size, 200.0);
+  return true;
 }
 
 namespace {

@@ -32,23 +32,20 @@ void PerformanceOptions::Register(OptionFields* fields) {
 }
 
 bool PerformanceOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("performance options: {}", message);
-    ok = false;
-  };
-  if (frames < 1 || frames > 100000) fail("frames must be in [1, 100000]");
-  if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
-  if (!(slip_mm >= 0 && slip_mm <= 30)) fail("slip_mm must be in [0, 30]");
-  if (!(slip_deg >= 0 && slip_deg <= 20)) fail("slip_deg must be in [0, 20]");
-  if (!(vibration_mm >= 0 && vibration_mm <= 5)) fail("vibration_mm must be in [0, 5]");
-  if (!(vibration_deg >= 0 && vibration_deg <= 2)) fail("vibration_deg must be in [0, 2]");
-  if (!(vibration_hz > 0 && vibration_hz <= 500)) fail("vibration_hz must be in (0, 500]");
-  if (!(head_offset_mm >= 0 && head_offset_mm <= 40)) fail("head_offset_mm must be in [0, 40]");
-  if (!(head_offset_deg >= 0 && head_offset_deg <= 30)) fail("head_offset_deg must be in [0, 30]");
-  if (!(brow_activity >= 0 && brow_activity <= 1)) fail("brow_activity must be in [0, 1]");
-  if (!(jaw_activity >= 0 && jaw_activity <= 1)) fail("jaw_activity must be in [0, 1]");
-  return ok;
+  CHECK_OPTION_IN(frames, 1, 100000);
+  CHECK_OPTION_GT(fps, 0.0);
+  CHECK_OPTION_LE(fps, 1000.0);
+  CHECK_OPTION_IN(slip_mm, 0.0, 30.0);
+  CHECK_OPTION_IN(slip_deg, 0.0, 20.0);
+  CHECK_OPTION_IN(vibration_mm, 0.0, 5.0);
+  CHECK_OPTION_IN(vibration_deg, 0.0, 2.0);
+  CHECK_OPTION_GT(vibration_hz, 0.0);
+  CHECK_OPTION_LE(vibration_hz, 500.0);
+  CHECK_OPTION_IN(head_offset_mm, 0.0, 40.0);
+  CHECK_OPTION_IN(head_offset_deg, 0.0, 30.0);
+  CHECK_OPTION_IN(brow_activity, 0.0, 1.0);
+  CHECK_OPTION_IN(jaw_activity, 0.0, 1.0);
+  return true;
 }
 
 namespace {
