@@ -109,16 +109,7 @@ TEST(KillTest, SolveKilledAtRandomMomentsKeepsOutputsWholeAndResumesToTheSameByt
     const Actor actor = WriteSmallActor(d, seed, 24, 20);
     std::vector<BundleFrame> frames;
     std::vector<JawFrame> jaw;
-    for (size_t n = 0; n < actor.shapes.size(); ++n) {
-      BundleFrame f;
-      f.frame = static_cast<int>(n) + 1;
-      const MatX3d x = actor.ShapePositions(static_cast<int>(n));
-      for (const Marker& m : actor.markers) {
-        f.bundles[m.name] = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
-      }
-      frames.push_back(f);
-      jaw.push_back({f.frame, actor.shapes[n].jaw});
-    }
+    DatasetShapeFrames(actor, &frames, &jaw);
     WriteBundlesCsv(d / "bundles.csv", frames);
     WriteJawCsv(d / "jaw.csv", jaw);
     auto args = [&](const fs::path& out, const std::string& method) {

@@ -7,10 +7,13 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "core/actor.h"
+#include "core/frame_data.h"
+#include "core/mesh.h"
 #include "synth/synth_actor.h"
 
 namespace hmc {
@@ -37,6 +40,22 @@ inline Actor WriteSmallActor(const std::filesystem::path& dir, int seed,
   options.dataset_combos = false;
   WriteActor(SynthesizeActor(options), dir / "actor", 17);
   return LoadActor(dir / "actor");
+}
+
+// One frame per dataset shape (frame n + 1: shape n): every marker's
+// exact position on the shape, and the shape's jaw pose.
+inline void DatasetShapeFrames(const Actor& actor, std::vector<BundleFrame>* frames,
+                               std::vector<JawFrame>* jaw) {
+  for (size_t n = 0; n < actor.shapes.size(); ++n) {
+    BundleFrame f;
+    f.frame = static_cast<int>(n) + 1;
+    const MatX3d x = actor.ShapePositions(static_cast<int>(n));
+    for (const Marker& m : actor.markers) {
+      f.bundles[m.name] = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
+    }
+    frames->push_back(f);
+    jaw->push_back({f.frame, actor.shapes[n].jaw});
+  }
 }
 
 }  // namespace hmc

@@ -56,17 +56,9 @@ TEST_P(SolveCli, VerificationThroughTheCli) {
   // One frame per dataset shape (frame 3 left with a single bundle: bad).
   std::vector<BundleFrame> frames;
   std::vector<JawFrame> jaw;
-  for (size_t n = 0; n < actor.shapes.size(); ++n) {
-    BundleFrame f;
-    f.frame = static_cast<int>(n) + 1;
-    const MatX3d x = actor.ShapePositions(static_cast<int>(n));
-    for (const Marker& m : actor.markers) {
-      f.bundles[m.name] = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
-      if (f.frame == 3) break;
-    }
-    frames.push_back(f);
-    jaw.push_back({f.frame, actor.shapes[n].jaw});
-  }
+  DatasetShapeFrames(actor, &frames, &jaw);
+  const std::string& first = actor.markers.front().name;
+  frames[2].bundles = {{first, frames[2].bundles.at(first)}};
   WriteBundlesCsv(dir / "bundles.csv", frames);
   WriteJawCsv(dir / "jaw.csv", jaw);
   const std::string common = "--nn.uv_resolution 512";
