@@ -54,9 +54,9 @@ HMC_COMMAND(Calibrate, "", "calibrate",
     const std::filesystem::path out_path(*out);
     const std::filesystem::path out_dir =
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-    EnsureDirectory(out_dir);
-    const std::filesystem::path report_path(*report);
-    if (report_path.has_parent_path()) EnsureDirectory(report_path.parent_path());
+    PrepareOutputPaths({{out_path, "--out"},
+                        {*report, "--report"},
+                        {*export_kalibr, "--export-kalibr"}});
     HelmetRig rig = ReadCalibration(*nominal);
     if (!import_kalibr->empty()) {
       rig = ApplyKalibr(rig, ReadKalibrCamchain(*import_kalibr), *import_kalibr);

@@ -44,6 +44,7 @@ const char* FormatName(SequenceFormat format) {
 int RunConvert(const ConvertArgs& args) {
   const SequenceFormat in_format = SequenceFormatFromPath(args.in);
   const SequenceFormat out_format = SequenceFormatFromPath(args.out);
+  PrepareOutputPaths({{args.out, "OUT", out_format == SequenceFormat::kObjFolder}});
 
   MeshSequenceReadOptions options;
   options.fps = args.fps;

@@ -68,18 +68,25 @@ void PrintTable(const EvalOutput& e, int vertices, double face_radius_mm) {
 int Run(EvalCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "eval");
+  PrepareOutputPaths({{cmd.out, "--out", true}});
   const Actor actor = LoadActor(cmd.actor_dir);
   EvalInput input;
   input.actor = &actor;
   input.truth = cmd.truth;
   input.recon = cmd.recon;
   input.bundles = cmd.bundles;
-  input.out = cmd.out;
-  if (!cmd.out.empty()) input.picture_frames = cmd.frames;
-  const EvalOutput output = RunEval(input, cmd.options);
-  if (!cmd.out.empty()) {
-    WriteOptionsUsed(binding.fields(),
-                     std::filesystem::path(cmd.out) / "options_used.yaml");
+  EvalOutput output;
+  if (cmd.out.empty()) {
+    output = RunEval(input, cmd.options);
+  } else {
+    // Written whole: the error maps of an earlier run's --frames do not
+    // stay beside this run's (docs/reliability.md).
+    WriteFolderAtomic(cmd.out, "hmc eval", [&](const std::filesystem::path& dir) {
+      input.out = dir;
+      input.picture_frames = cmd.frames;
+      output = RunEval(input, cmd.options);
+      WriteOptionsUsed(binding.fields(), dir / "options_used.yaml");
+    });
   }
   if (cmd.json) {
     fmt::print("{}\n", output.report.dump());

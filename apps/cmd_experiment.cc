@@ -33,11 +33,17 @@ HMC_COMMAND(Experiment, "", "experiment",
   return [=] {
     binding->Apply();
     input->actor_dir = *actor_dir;
-    input->out = *out;
-    const ExperimentOutput output = RunExperiment(*input, *options);
-    WriteOptionsUsed(binding->fields(), input->out / "options_used.yaml");
+    PrepareOutputPaths({{*out, "--out", true}});
+    // Written whole: a re-run with fewer kinds or noise levels leaves none
+    // of the earlier run's folders behind (docs/reliability.md).
+    ExperimentOutput output;
+    WriteFolderAtomic(*out, "hmc experiment", [&](const std::filesystem::path& dir) {
+      input->out = dir;
+      output = RunExperiment(*input, *options);
+      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml");
+    });
     spdlog::info("experiment: {} -> {}", output.BriefReport(),
-                 (input->out / "results.md").string());
+                 (std::filesystem::path(*out) / "results.md").string());
     return 0;
   };
 }

@@ -37,6 +37,7 @@ HMC_COMMAND(Jaw, "", "jaw",
   return [=] {
     binding->Apply();
     RequireValid(*options, "jaw");
+    PrepareOutputPaths({{*out, "--out"}});
     StageTimer timer("jaw");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
     const Actor& actor = *loaded;

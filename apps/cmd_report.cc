@@ -26,9 +26,17 @@ HMC_COMMAND(Report, "", "report",
   return [=] {
     binding->Apply();
     RequireValid(*options, "report");
+    PrepareOutputPaths({{input->out, "--out", true}});
     StageTimer timer("report");
-    const ReportSummary summary = WriteRunReport(*input, *options);
-    WriteOptionsUsed(binding->fields(), std::filesystem::path(input->out) / "options_used.yaml");
+    // Written whole: a re-run without ground truth leaves no accuracy.json
+    // or error picture of an earlier one (docs/reliability.md).
+    ReportSummary summary;
+    WriteFolderAtomic(input->out, "hmc report", [&](const std::filesystem::path& dir) {
+      ReportInput in = *input;
+      in.out = dir.string();
+      summary = WriteRunReport(in, *options);
+      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml");
+    });
     spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
     return 0;
   };

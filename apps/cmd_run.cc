@@ -37,6 +37,7 @@ HMC_COMMAND(Run, "", "run",
     binding->Apply();
     input->config = binding->config_file();
     RequireValid(*options, "run");
+    PrepareOutputPaths({{input->out, "--out", true}});
     StageTimer timer("run");
     // Every stage loads the actor; parse it once for the run (each stage
     // still reads and hashes the files: core/actor_cache.h).

@@ -157,10 +157,10 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   const std::filesystem::path parent =
       out_path.has_parent_path() ? out_path.parent_path()
                                  : std::filesystem::path(".");
-  PrepareOutputPath(cmd.out, "--out", format == SequenceFormat::kObjFolder);
-  PrepareOutputPath(parent / "options_used.yaml", "options_used.yaml beside --out");
-  if (!cmd.diagnostics_file.empty()) PrepareOutputPath(cmd.diagnostics_file, "--diagnostics");
-  if (!cmd.topology_file.empty()) PrepareOutputPath(cmd.topology_file, "--topology");
+  PrepareOutputPaths({{cmd.out, "--out", format == SequenceFormat::kObjFolder},
+                      {parent / "options_used.yaml", "options_used.yaml beside --out"},
+                      {cmd.diagnostics_file, "--diagnostics"},
+                      {cmd.topology_file, "--topology"}});
   const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
   const Actor& actor = *loaded;
   const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);

@@ -37,6 +37,7 @@ HMC_COMMAND(Stabilize, "", "stabilize",
   return [=] {
     binding->Apply();
     RequireValid(*options, "stabilize");
+    PrepareOutputPaths({{*out, "--out", true}});
     StageTimer timer("stabilize");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
     const Actor& actor = *loaded;

@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/command.h"
+#include "core/file_util.h"
 #include "core/logging.h"
 #include "tracking/track_shot.h"
 
@@ -44,15 +45,25 @@ HMC_COMMAND(Track, "", "track",
     if (*reference > 0) options->reference_frame = *reference;
     if (*dot_size > 0) options->detect.dot_size_px = *dot_size;
     RequireValid(*options, "track");
+    PrepareOutputPaths({{*out, "--out"}, {*diagnostics, "--diagnostics"}, {*overlay, "--overlay", true}});
     StageTimer timer("track");
     TrackInput in;
     in.shot = *shot;
     in.calibration = *calibration;
     in.actor = *actor;
     in.out = *out;
-    in.overlay_dir = *overlay;
     in.diagnostics = *diagnostics;
-    const TrackOutput output = RunTrack(in, *options);
+    TrackOutput output;
+    if (overlay->empty()) {
+      output = RunTrack(in, *options);
+    } else {
+      // The overlay frames are a folder written whole: a re-run over fewer
+      // frames leaves none of the earlier run's pictures behind.
+      WriteFolderAtomic(*overlay, "hmc track --overlay", [&](const std::filesystem::path& dir) {
+        in.overlay_dir = dir;
+        output = RunTrack(in, *options);
+      });
+    }
     spdlog::info("track: {} -> {}", output.summary.BriefReport(), *out);
     return 0;
   };

@@ -96,7 +96,7 @@ HMC_COMMAND(Triangulate, "", "triangulate",
     const std::filesystem::path out_path(*out);
     const std::filesystem::path out_dir =
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-    EnsureDirectory(out_dir);
+    PrepareOutputPaths({{out_path, "--out"}, {*diagnostics, "--diagnostics"}, {*rays, "--rays"}});
     const HelmetRig rig = ReadCalibration(*calibration);
     const bool from_dots = IsDotsFile(*tracks_path);
     const std::vector<Track2d> tracks =

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/command.h"
+#include "core/file_util.h"
 #include "core/logging.h"
 #include "tracking/undistort.h"
 
@@ -32,8 +33,14 @@ HMC_COMMAND(Undistort, "", "undistort",
     binding->Apply();
     if (*fov > 0) options->fov_deg = *fov;
     RequireValid(*options, "undistort");
+    PrepareOutputPaths({{*out, "--out", true}});
     StageTimer timer("undistort");
-    const UndistortSummary summary = RunUndistort({*shot, *calibration, *out, *tracks}, *options);
+    // Written whole: a re-run with other frames or cameras leaves nothing
+    // of the earlier one (docs/reliability.md).
+    UndistortSummary summary;
+    WriteFolderAtomic(*out, "hmc undistort", [&](const std::filesystem::path& dir) {
+      summary = RunUndistort({*shot, *calibration, dir, *tracks}, *options);
+    });
     spdlog::info("undistort: {} -> {}", summary.BriefReport(), *out);
     return 0;
   };

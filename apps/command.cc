@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/file_util.h"
 
 namespace hmc {
 namespace {
@@ -57,6 +58,19 @@ void AddRegisteredCommands(CLI::App* app, CommandRun* run) {
     CLI::App* sub = parent->add_subcommand(command.name, command.help);
     CommandRun command_run = command.setup(sub);
     sub->callback([run, command_run] { *run = command_run; });
+  }
+}
+
+void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs) {
+  for (const OutputFlag& o : outputs) {
+    if (o.path.empty()) continue;
+    const std::filesystem::path dir = o.path.has_parent_path() ? o.path.parent_path() : ".";
+    const std::filesystem::path package = EnclosingActorPackage(dir);
+    if (!package.empty()) {
+      ThrowInputError(o.path, 0, "{}: refusing to write inside the actor package {}", o.flag,
+                      package.string());
+    }
+    PrepareOutputPath(o.path, o.flag, o.folder);
   }
 }
 

@@ -10,7 +10,9 @@
 // and returns what runs after parsing. Group "" makes a top-level command.
 #pragma once
 
+#include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <vector>
@@ -37,6 +39,22 @@ void AddRegisteredCommands(CLI::App* app, CommandRun* run);
 // through, a parse error becomes an InputError. `hmc run` chains the stages
 // with it, so each stage runs exactly as its own command.
 int RunCommandLine(const std::vector<std::string>& args);
+
+// One output flag of a command, for PrepareOutputPaths.
+struct OutputFlag {
+  std::filesystem::path path;  // empty: the flag was not given, skipped
+  std::string flag;            // "--out", named in the error
+  bool folder = false;         // a folder output (else a file)
+};
+
+// What every command that writes calls before it reads or computes
+// anything (docs/reliability.md), so that a bad output path costs no work
+// and replaces no earlier output: PrepareOutputPath for each given flag
+// (its folder created and writable, a file output not a folder, a folder
+// output not a file), and no output inside an actor package (`hmc index
+// --into_package` is the one command that writes into one). Throws
+// InputError naming the path and the flag.
+void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs);
 
 // Adds `--config FILE` and one flag `--<field>` per registered option field
 // to `app`. Apply() (call at run time) loads the config file, then the flags

@@ -202,12 +202,13 @@ void WriteFolderAtomic(const fs::path& dir_in, const std::string& what,
   static std::atomic<int> counter{0};
   fs::path dir = dir_in;
   if (dir.filename().empty()) dir = dir.parent_path();  // "out/"
-  PrepareOutputPath(dir, what, true);
+  // The package first: refusing must not leave folders created inside it.
   const fs::path package = EnclosingActorPackage(dir.has_parent_path() ? dir.parent_path() : ".");
   if (!package.empty()) {
     ThrowInputError(dir, 0, "{}: refusing to write inside the actor package {}", what,
                     package.string());
   }
+  PrepareOutputPath(dir, what, true);
   std::error_code ec;
   const bool exists = fs::exists(dir, ec);
   if (exists && !fs::is_empty(dir, ec) &&

@@ -212,6 +212,20 @@ TEST_P(EvalCli, AgreesWithAnIndependentComputationFromThePc2Bytes) {
     EXPECT_TRUE(fs::exists(out / fmt::format("error_uv_{:06d}.exr", frame)));
   }
   EXPECT_FALSE(fs::exists(out / "frame_000007.png"));
+  // A re-run with other --frames replaces the folder whole: no picture of
+  // the earlier run stays beside the new ones (issue 24, item 5).
+  const CliResult rerun = RunHmc(
+      fmt::format("eval --actor '{}' --truth '{}' --recon '{}' --out '{}' --frames 7 "
+                  "--uv_resolution 64 --image_width 96 --image_height 120",
+                  (dir / "actor").string(), (dir / "truth.pc2").string(),
+                  (dir / "recon.pc2").string(), out.string()),
+      dir);
+  ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
+  EXPECT_TRUE(fs::exists(out / "frame_000007.png"));
+  for (int frame : {6, 9}) {
+    EXPECT_FALSE(fs::exists(out / fmt::format("frame_{:06d}.png", frame))) << frame;
+    EXPECT_FALSE(fs::exists(out / fmt::format("error_uv_{:06d}.exr", frame))) << frame;
+  }
 
   // Identical sequences: every error is zero.
   const CliResult same =

@@ -377,7 +377,119 @@ TEST(ReliabilityShot, LensOptionsAreCheckedAndShotFoldersAreWrittenWhole) {
   const CliResult inside = shot(actor / "shot", "--frames 1");
   EXPECT_EQ(inside.exit_code, 2) << inside.err;
   EXPECT_NE(inside.err.find("actor package"), std::string::npos) << inside.err;
+  // Deeper: refused before any folder is created inside the package.
+  const CliResult deep = shot(actor / "takes" / "shot", "--frames 1");
+  EXPECT_EQ(deep.exit_code, 2) << deep.err;
+  EXPECT_NE(deep.err.find("actor package"), std::string::npos) << deep.err;
   EXPECT_EQ(Listing(actor), package);
+  fs::remove_all(dir);
+}
+
+// Items 5 and 6 for every command that writes: each output flag is checked
+// before any input is read (the inputs here are not even valid), an output
+// inside an actor package is refused, and a folder output that holds files
+// hmc did not write is refused and left as it was.
+TEST(ReliabilityOutputs, EveryCommandChecksItsOutputsFirst) {
+  const fs::path dir = FreshTestDir("hmc_rel_outputs_all", 1);
+  const fs::path package = dir / "A";
+  fs::create_directories(package);
+  WriteFileAtomic(package / "actor.yaml", "not read\n");
+  WriteFileAtomic(dir / "file.txt", "a file, not a folder\n");
+  fs::create_directories(dir / "mine");
+  WriteFileAtomic(dir / "mine" / "notes.txt", "keep me\n");
+  WriteFileAtomic(dir / "in.txt", "not an input of any command\n");
+  const std::string in = (dir / "in.txt").string();
+  WriteFileAtomic(dir / "in.pc2", "not a mesh sequence\n");
+  const std::string a = package.string();
+  // {command line with {} for the output path, the flag named, folder output}
+  struct Case {
+    std::string line;
+    std::string flag;
+    bool folder;
+  };
+  const std::vector<Case> cases = {
+      {"track --shot " + in + " --calibration " + in + " --actor " + a + " --out {}", "--out", false},
+      {"track --shot " + in + " --calibration " + in + " --actor " + a + " --out " +
+           (dir / "t.csv").string() + " --diagnostics {}",
+       "--diagnostics", false},
+      {"track --shot " + in + " --calibration " + in + " --actor " + a + " --out " +
+           (dir / "t.csv").string() + " --overlay {}",
+       "--overlay", true},
+      {"calibrate --shot " + in + " --calibration " + in + " --out {}", "--out", false},
+      {"calibrate --shot " + in + " --calibration " + in + " --out " +
+           (dir / "c.yaml").string() + " --report {}",
+       "--report", false},
+      {"triangulate --tracks " + in + " --calibration " + in + " --out {}", "--out", false},
+      {"triangulate --tracks " + in + " --calibration " + in + " --out " +
+           (dir / "b.csv").string() + " --rays {}",
+       "--rays", false},
+      {"stabilize --bundles " + in + " --actor " + a + " --out {}", "--out", true},
+      {"jaw --bundles " + in + " --actor " + a + " --out {}", "--out", false},
+      {"undistort --shot " + in + " --calibration " + in + " --out {}", "--out", true},
+      {"solve --actor " + a + " --bundles " + in + " --out {}", "--out", false},
+      {"eval --actor " + a + " --truth " + in + " --recon " + in + " --out {}", "--out", true},
+      {"eval-tracks --tracks " + in + " --truth " + in + " --json {}", "--json", false},
+      {"experiment --actor " + a + " --out {}", "--out", true},
+      {"report --work " + in + " --shot " + in + " --actor " + a + " --out {}", "--out", true},
+      {"run --shot " + in + " --actor " + a + " --calibration " + in + " --out {}", "--out", true},
+      {"convert " + (dir / "in.pc2").string() + " {}", "OUT", false},
+      {"actor preview " + a + " --out {}", "--out", false},
+      {"debug voronoi --actor " + a + " --out {}", "--out", false},
+  };
+  const std::vector<std::string> listing = Listing(dir);
+  for (const Case& c : cases) {
+    const std::string name = c.folder ? "o" : "o.pc2";
+    auto run = [&](const fs::path& out) {
+      std::string line = c.line;
+      line.replace(line.find("{}"), 2, "'" + out.string() + "'");
+      return RunHmc(line, dir);
+    };
+    const CliResult inside = run(package / "sub" / name);
+    EXPECT_EQ(inside.exit_code, 2) << c.line << ": " << inside.err;
+    EXPECT_NE(inside.err.find(c.flag + ": refusing to write inside the actor package"),
+              std::string::npos)
+        << c.line << ": " << inside.err;
+    const CliResult under_file = run(dir / "file.txt" / name);
+    EXPECT_EQ(under_file.exit_code, 2) << c.line << ": " << under_file.err;
+    EXPECT_NE(under_file.err.find(c.flag + ": cannot create its folder"), std::string::npos)
+        << c.line << ": " << under_file.err;
+    // solve and convert write a mesh sequence, which may be a folder.
+    if (c.flag == "OUT" || c.line.rfind("solve", 0) == 0) continue;
+    const CliResult wrong_kind = run(c.folder ? dir / "file.txt" : dir / "mine");
+    EXPECT_EQ(wrong_kind.exit_code, 2) << c.line << ": " << wrong_kind.err;
+    EXPECT_NE(wrong_kind.err.find(c.flag + (c.folder ? ": exists and is not a folder"
+                                                     : ": is a folder, not a file")),
+              std::string::npos)
+        << c.line << ": " << wrong_kind.err;
+  }
+  // Folders written whole refuse one that holds files they did not write.
+  const std::vector<std::string> whole = {
+      "undistort --shot " + in + " --calibration " + in + " --out {}",
+      "experiment --actor " + a + " --out {}",
+      "report --work " + in + " --shot " + in + " --actor " + a + " --out {}",
+      "track --shot " + in + " --calibration " + in + " --actor " + a + " --out " +
+          (dir / "t.csv").string() + " --overlay {}"};
+  for (const std::string& line : whole) {
+    std::string l = line;
+    l.replace(l.find("{}"), 2, "'" + (dir / "mine").string() + "'");
+    const CliResult r = RunHmc(l, dir);
+    EXPECT_EQ(r.exit_code, 2) << line << ": " << r.err;
+    EXPECT_NE(r.err.find("refusing to replace a folder that is not empty"), std::string::npos)
+        << line << ": " << r.err;
+  }
+  // Nothing was written anywhere (the runner's own stdout/stderr aside).
+  auto without_runner_files = [](std::vector<std::string> names) {
+    names.erase(std::remove_if(names.begin(), names.end(),
+                               [](const std::string& n) {
+                                 return n == "stdout.txt" || n == "stderr.txt" ||
+                                        n.rfind("xdg_cache", 0) == 0;
+                               }),
+                names.end());
+    return names;
+  };
+  const std::vector<std::string> after = without_runner_files(Listing(dir));
+  const std::vector<std::string> before = without_runner_files(listing);
+  EXPECT_EQ(after, before);
   fs::remove_all(dir);
 }
 
