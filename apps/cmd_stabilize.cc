@@ -12,6 +12,7 @@
 #include "core/actor.h"
 #include "core/actor_cache.h"
 #include "core/frame_data.h"
+#include "core/frame_gaps.h"
 #include "core/logging.h"
 #include "stabilization/accuracy.h"
 #include "stabilization/marker_model.h"
@@ -41,9 +42,12 @@ HMC_COMMAND(Stabilize, "", "stabilize",
     StageTimer timer("stabilize");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
     const Actor& actor = *loaded;
-    const std::vector<BundleFrame> frames = ReadBundlesCsv(*bundles);
+    std::vector<BundleFrame> frames = ReadBundlesCsv(*bundles);
+    // A frame lost upstream is fitted as a bad frame: interpolated, flagged.
+    const std::vector<int> missing = InsertMissingFrames(&frames, *bundles);
     const MarkerModel model = ComputeMarkerModel(actor);
-    const StabilizeOutput output = RunStabilize(model, frames, *options);
+    StabilizeOutput output = RunStabilize(model, frames, *options);
+    MarkMissingFrames(missing, &output.frames);
     WriteStabilizeOutput(output, model, *options, *out);
     spdlog::info("stabilize: {} -> {}", output.BriefReport(), *out);
     if (!truth->empty()) {

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -23,6 +24,7 @@
 #include "apps/command.h"
 #include "core/calibration.h"
 #include "core/file_util.h"
+#include "core/frame_gaps.h"
 #include "core/logging.h"
 #include "core/text.h"
 #include "core/tracks_2d.h"
@@ -55,6 +57,46 @@ nlohmann::json AccuracyJson(const TriangulationAccuracy& a) {
           {"full_in_every_camera", a.full_both},
           {"full_and_triangulated", a.full_both_triangulated},
           {"full_coverage", a.full_coverage()}};
+}
+
+// The frames between the first and last frame of the tracks that gave no
+// bundle, with why (docs/reliability.md, promise 2): a frame lost in one
+// camera (a corrupt video frame) or in all of them. Missing runs longer
+// than kMaxMissingFrames are listed as one entry (the later stages refuse
+// them as stray frame numbers).
+nlohmann::json FlaggedFrames(const std::vector<Track2d>& tracks,
+                             const std::vector<BundleFrame>& bundles, const HelmetRig& rig) {
+  std::map<int, std::map<std::string, int>> named;  // frame -> camera -> named dots
+  for (const Track2d& t : tracks) ++named[t.frame][t.camera];
+  std::set<int> with_bundles;
+  for (const BundleFrame& b : bundles) {
+    if (!b.bundles.empty()) with_bundles.insert(b.frame);
+  }
+  nlohmann::json flagged = nlohmann::json::array();
+  int previous = named.empty() ? 0 : named.begin()->first - 1;
+  for (const auto& [frame, per_camera] : named) {
+    if (frame - previous - 1 > kMaxMissingFrames) {
+      flagged.push_back({{"frame", previous + 1},
+                         {"last_frame", frame - 1},
+                         {"reason", "no tracks in any camera"}});
+    } else {
+      for (int n = previous + 1; n < frame; ++n) {
+        flagged.push_back({{"frame", n}, {"reason", "no tracks in any camera"}});
+      }
+    }
+    previous = frame;
+    if (with_bundles.count(frame)) continue;
+    std::string counts;
+    for (const HelmetCamera& c : rig.cameras) {
+      const auto it = per_camera.find(c.name);
+      counts += fmt::format("{}{} {}", counts.empty() ? "" : ", ", c.name,
+                            it == per_camera.end() ? 0 : it->second);
+    }
+    flagged.push_back(
+        {{"frame", frame},
+         {"reason", fmt::format("no marker seen by two cameras (named dots: {})", counts)}});
+  }
+  return flagged;
 }
 
 }  // namespace
@@ -142,7 +184,16 @@ HMC_COMMAND(Triangulate, "", "triangulate",
         {"max_residual_px", s.max_residual_px},
         {"median_depth_sigma_mm", s.median_depth_sigma_mm},
         {"seconds", s.seconds},
-        {"gated_list", gated}};
+        {"gated_list", gated},
+        {"flagged_frames", FlaggedFrames(tracks, result.bundles, rig)}};
+    const nlohmann::json& flagged = summary["flagged_frames"];
+    for (size_t i = 0; i < flagged.size() && i < 10; ++i) {
+      spdlog::warn("triangulate: frame {} flagged: {}", flagged[i]["frame"].get<int>(),
+                   flagged[i]["reason"].get<std::string>());
+    }
+    if (flagged.size() > 10) {
+      spdlog::warn("triangulate: {} frames flagged in all (summary.json)", flagged.size());
+    }
     spdlog::info("triangulate: {}", s.BriefReport());
     if (!truth->empty()) {
       const std::filesystem::path shot(*truth);

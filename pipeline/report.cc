@@ -127,6 +127,22 @@ std::string SummaryCells(const nlohmann::json& j, int depth = 0) {
   return out;
 }
 
+// Sorted frame numbers as runs: "3, 7-9, 12".
+std::string FrameRuns(const std::vector<int>& frames) {
+  std::string text;
+  for (size_t i = 0; i < frames.size();) {
+    size_t j = i;
+    while (j + 1 < frames.size() && frames[j + 1] == frames[j] + 1) ++j;
+    text += (text.empty() ? "" : ", ") +
+            (j == i ? std::to_string(frames[i]) : fmt::format("{}-{}", frames[i], frames[j]));
+    i = j + 1;
+  }
+  return text;
+}
+
+// A stage summary's `warnings`, and its lists of bad frames
+// (`flagged_frames`, `interpolated_frames`: [{frame, reason}]), one line per
+// reason with the frames it concerns.
 void CollectWarnings(const nlohmann::json& j, const std::string& stage,
                      std::vector<std::string>* out) {
   if (j.is_object()) {
@@ -134,6 +150,17 @@ void CollectWarnings(const nlohmann::json& j, const std::string& stage,
       if (k == "warnings" && v.is_array()) {
         for (const auto& w : v) {
           out->push_back(stage + ": " + (w.is_string() ? w.get<std::string>() : w.dump()));
+        }
+      } else if ((k == "flagged_frames" || k == "interpolated_frames") && v.is_array()) {
+        std::map<std::string, std::vector<int>> by_reason;
+        for (const auto& f : v) {
+          if (f.is_object()) by_reason[f.value("reason", std::string())].push_back(f.value("frame", 0));
+        }
+        for (auto& [reason, frames] : by_reason) {
+          std::sort(frames.begin(), frames.end());
+          out->push_back(fmt::format("{}: {} {} {}: {}", stage, frames.size() == 1 ? "frame" : "frames",
+                                     FrameRuns(frames),
+                                     k == "flagged_frames" ? "flagged" : "interpolated", reason));
         }
       } else {
         CollectWarnings(v, stage, out);

@@ -268,10 +268,16 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       return plan;
     }
     plan.run = [this](const fs::path& dir) {
-      return RunCommand("jaw",
-                        {"jaw", "--bundles", Out("stabilize", "bundles.csv").string(), "--actor",
-                         input_.actor, "--out", (dir / "jaw.csv").string()},
-                        dir);
+      nlohmann::json report =
+          RunCommand("jaw",
+                     {"jaw", "--bundles", Out("stabilize", "bundles.csv").string(), "--actor",
+                      input_.actor, "--out", (dir / "jaw.csv").string()},
+                     dir);
+      // hmc jaw names its summary after --out: it is the stage's, as a
+      // summary.json of the command would be (workspace.h).
+      const fs::path own = dir / "jaw_summary.json";
+      if (fs::is_regular_file(own)) report["command_summary"] = nlohmann::json::parse(ReadFile(own));
+      return report;
     };
   } else if (stage == "solve") {
     key.AddInput("bundles", Out("stabilize", "bundles.csv"));

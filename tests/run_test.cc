@@ -1,7 +1,7 @@
 // hmc run end to end on a short synthetic shot of a small actor (issue 22):
 // the chain footage -> mesh against the ground truth, per-stage re-runs
 // giving the same bytes, resume after SIGKILL at random moments, and a
-// corrupt frame in one camera flagged and skipped.
+// corrupt frame in one camera flagged in every later stage.
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,9 +15,12 @@
 #include <nlohmann/json.hpp>
 
 #include "core/file_util.h"
+#include "core/frame_data.h"
+#include "core/image_io.h"
 #include "core/mesh_sequence.h"
 #include "core/tracks_2d.h"
 #include "tests/cli_runner.h"
+#include "tracking/footage_reader.h"
 #include "tests/small_actor.h"
 
 namespace hmc {
@@ -193,6 +196,87 @@ TEST_F(RunTest, KilledAtRandomMomentsResumesToTheSameBytes) {
   for (const auto& e : fs::recursive_directory_iterator(work)) {
     EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
     EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
+  }
+}
+
+// Issue 22, item 9: a frame that does not decode in one camera is flagged
+// in every later stage (the track warns, triangulate flags it, stabilize
+// and jaw interpolate it, the solve flags it), and every other frame gets
+// its mesh, as accurate as in a clean run.
+TEST_F(RunTest, ACorruptFrameInOneCameraIsFlaggedInEveryLaterStage) {
+  const fs::path& d = *dir_;
+  const fs::path shot = d / "shot_corrupt";
+  fs::create_directories(shot / "cam1");
+  // cam0's video and the rest of the shot as they are; cam1 as a PNG
+  // sequence numbered from 0 (as some recorders write), whose third frame
+  // is not an image.
+  for (const auto& e : fs::directory_iterator(d / "shot")) {
+    if (e.path().filename() == "cam1.mkv") continue;
+    fs::copy(e.path(), shot / e.path().filename(), fs::copy_options::recursive);
+  }
+  {
+    FootageReader reader(d / "shot", {"cam1"}, FootageOptions{});
+    FootageFrame frame;
+    while (reader.Next(&frame)) {
+      WritePng(shot / "cam1" / fmt::format("frame_{:06d}.png", frame.frame - 1), frame.images[0]);
+    }
+  }
+  constexpr int kBad = 3;
+  WriteFileAtomic(shot / "cam1" / fmt::format("frame_{:06d}.png", kBad - 1), "not a png\n");
+  const fs::path work = d / "work_corrupt";
+  const CliResult run = RunHmc(RunArgs(shot, work), d);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  auto summary = [&](const std::string& stage) {
+    return nlohmann::json::parse(ReadFile(work / stage / "summary.json"))["report"]["command_summary"];
+  };
+  // The frames a list [{frame, reason}] names.
+  auto frames_of = [](const nlohmann::json& list) {
+    std::vector<int> frames;
+    for (const auto& f : list) frames.push_back(f["frame"].get<int>());
+    return frames;
+  };
+  const std::vector<int> bad = {kBad};
+  bool warned = false;
+  const nlohmann::json track = summary("track");
+  for (const auto& w : track["warnings"]) {
+    warned |= w.get<std::string>().find(fmt::format("frame {} cam1", kBad)) != std::string::npos;
+  }
+  EXPECT_TRUE(warned) << track.dump();
+  EXPECT_EQ(frames_of(summary("triangulate")["flagged_frames"]), bad);
+  for (const char* stage : {"stabilize", "jaw"}) {
+    const nlohmann::json list = summary(stage)["interpolated_frames"];
+    EXPECT_EQ(frames_of(list), bad) << stage;
+    if (!list.empty()) {
+      EXPECT_NE(list[0]["reason"].get<std::string>().find("missing from the input"),
+                std::string::npos)
+          << list.dump();
+    }
+  }
+  EXPECT_EQ(ReadPosesCsv(work / "stabilize" / "head_from_helmet.csv").size(),
+            static_cast<size_t>(kFrames));
+  EXPECT_EQ(ReadJawCsv(work / "jaw" / "jaw.csv").size(), static_cast<size_t>(kFrames));
+  const nlohmann::json diag = nlohmann::json::parse(ReadFile(work / "solve" / "diagnostics.json"));
+  ASSERT_EQ(diag["frames"].size(), static_cast<size_t>(kFrames));
+  for (const auto& f : diag["frames"]) {
+    EXPECT_EQ(f["ok"].get<bool>(), f["frame"].get<int>() != kBad) << f["frame"];
+  }
+  EXPECT_EQ(ReadMeshSequence(work / "solve" / "mesh.pc2").frames.size(),
+            static_cast<size_t>(kFrames));
+  const std::string page = ReadFile(work / "report" / "report.html");
+  for (const char* line :
+       {"triangulate: frame 3 flagged", "stabilize: frame 3 interpolated",
+        "jaw: frame 3 interpolated", "solve: frame 3 flagged"}) {
+    EXPECT_NE(page.find(line), std::string::npos) << line;
+  }
+  // Every other frame as accurate as the clean run's bound.
+  const CliResult eval = RunHmc(
+      fmt::format("eval --actor '{}' --truth '{}' --recon '{}' --json", (d / "actor").string(),
+                  (shot / "truth.pc2").string(), (work / "solve" / "mesh.pc2").string()),
+      d);
+  ASSERT_EQ(eval.exit_code, 0) << eval.err;
+  for (const auto& f : nlohmann::json::parse(eval.out)["per_frame"]) {
+    if (f["frame"].get<int>() == kBad) continue;
+    EXPECT_LT(f["face"]["mean_mm"].get<double>(), 0.3) << f["frame"];
   }
 }
 

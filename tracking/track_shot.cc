@@ -223,26 +223,29 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml");
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  nlohmann::json j;
+  j["stage"] = "track";
+  j["reference_frame"] = summary.reference_frame;
+  j["dot_size_px"] = summary.dot_size_px;
+  j["labelling"] = {{"ok", summary.labelling.ok},
+                    {"candidate_points", summary.labelling.candidate_points},
+                    {"inliers", summary.labelling.inliers},
+                    {"rms_mm", summary.labelling.rms_mm}};
+  j["warnings"] = summary.warnings;  // with every frame that failed to decode
+  j["summary"] = {{"frames", summary.frames},
+                  {"skipped_views", summary.skipped_views},
+                  {"mean_detections", summary.mean_detections},
+                  {"mean_named", summary.mean_named},
+                  {"reacquired", summary.reacquired},
+                  {"swaps_caught", summary.swaps_caught},
+                  {"rows", summary.rows},
+                  {"seconds", summary.seconds}};
   if (!input.diagnostics.empty()) {
-    nlohmann::json j;
-    j["reference_frame"] = summary.reference_frame;
-    j["dot_size_px"] = summary.dot_size_px;
-    j["labelling"] = {{"ok", summary.labelling.ok},
-                      {"candidate_points", summary.labelling.candidate_points},
-                      {"inliers", summary.labelling.inliers},
-                      {"rms_mm", summary.labelling.rms_mm}};
-    j["warnings"] = summary.warnings;
-    j["summary"] = {{"frames", summary.frames},
-                    {"skipped_views", summary.skipped_views},
-                    {"mean_detections", summary.mean_detections},
-                    {"mean_named", summary.mean_named},
-                    {"reacquired", summary.reacquired},
-                    {"swaps_caught", summary.swaps_caught},
-                    {"rows", summary.rows},
-                    {"seconds", summary.seconds}};
-    j["frames"] = frames_json;
-    WriteFileAtomic(input.diagnostics, j.dump(1));
+    nlohmann::json d = j;
+    d["frames"] = frames_json;
+    WriteFileAtomic(input.diagnostics, d.dump(1));
   }
+  WriteFileAtomic(input.out.parent_path() / "summary.json", j.dump(1) + "\n");  // last
   return output;
 }
 

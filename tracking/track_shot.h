@@ -3,8 +3,9 @@
 // the painted dots in every original frame (tracking/dot_detector.h), names
 // them at the reference frame from the actor's neutral marker layout and
 // tracks them over the shot (tracking/marker_tracker.h). Writes
-// tracks_2d.csv (core/tracks_2d.h), options_used.yaml beside it, and
-// optionally a diagnostics JSON and overlay PNGs (docs/formats.md).
+// tracks_2d.csv (core/tracks_2d.h), options_used.yaml and, last,
+// summary.json beside it, and optionally a diagnostics JSON and overlay
+// PNGs (docs/formats.md).
 #pragma once
 
 #include <filesystem>
