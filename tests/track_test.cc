@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/file_util.h"
+#include "core/frame_data.h"
 #include "core/tracks_2d.h"
 #include "tests/cli_runner.h"
 #include "tests/small_actor.h"
@@ -114,6 +115,33 @@ TEST_F(TrackTest, LabelsAHeadOffsetFifteenMillimetresAndTenDegrees) {
     EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
     EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
   }
+}
+
+// A take that starts with the mouth open: the labelling finds the jaw pose
+// with the head's (the actor's jaw rig, docs/tracking.md), and names the
+// chin and lip dots as well as at rest. Before the jaw search the chin dots
+// of such a shot took their neighbours' names for the whole shot.
+TEST_F(TrackTest, LabelsAReferenceFrameWithTheJawOpen) {
+  int open = 0;
+  for (int seed = 6; seed <= 8; ++seed) {
+    const fs::path shot = Shot(fmt::format("jaw{}", seed), seed, 2, "--jaw_activity 0.8");
+    const fs::path out = dir_ / fmt::format("track_jaw{}", seed) / "tracks_2d.csv";
+    const fs::path diag_path = out.parent_path() / "d.json";
+    const CliResult r = Track(shot, out, fmt::format("--diagnostics '{}'", diag_path.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const JawPose truth = ReadJawCsv(shot / "jaw.csv").at(0).pose;
+    const nlohmann::json jaw = nlohmann::json::parse(ReadFile(diag_path))["labelling"]["jaw"];
+    std::printf("jaw seed %d: true open %.2f lateral %.2f protrude %.2f, found %s\n", seed,
+                truth.open_deg, truth.lateral_deg, truth.protrude_mm, jaw.dump().c_str());
+    open += truth.open_deg >= 5;
+    EXPECT_NEAR(jaw["open_deg"].get<double>(), truth.open_deg, 1.0) << "seed " << seed;
+    EXPECT_NEAR(jaw["lateral_deg"].get<double>(), truth.lateral_deg, 1.5) << "seed " << seed;
+    const TrackScore s = ScoreTracks(ReadTracks2dCsv(out), ReadDots2dCsv(shot / "dots_2d.csv"));
+    std::printf("jaw seed %d: %s\n", seed, s.BriefReport().c_str());
+    EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
+    EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
+  }
+  EXPECT_GE(open, 1) << "no seed opened the jaw 5 degrees at frame 1: the test tests nothing";
 }
 
 // Paints skin over one named dot in frames 3 and 4 of cam0: it has no row

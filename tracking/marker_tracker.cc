@@ -77,6 +77,29 @@ MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours) {
     const Vec3 n = EvaluateSurfacePoint(marker.point, actor.neutral.F, normals);
     layout.normals.push_back(n.norm() > 0 ? Vec3(n.normalized()) : Vec3(0, 0, 1));
   }
+  if (actor.jaw_rig) {
+    layout.jaw_rig = *actor.jaw_rig;
+    layout.jaw_rig.weights.resize(0);
+    for (const Marker& marker : actor.markers) {
+      double w = 0;
+      for (int i = 0; i < 3; ++i) {
+        w += marker.point.bary[i] * actor.jaw_rig->weights(actor.neutral.F(marker.point.face, i));
+      }
+      layout.jaw_weights.push_back(w);
+    }
+    for (const Shape& shape : actor.shapes) {
+      const std::array<double, 3> p = shape.jaw.ToArray();
+      for (int i = 0; i < 3; ++i) {
+        layout.jaw_lower[i] = std::min(layout.jaw_lower[i], p[i]);
+        layout.jaw_upper[i] = std::max(layout.jaw_upper[i], p[i]);
+      }
+    }
+    for (int i = 0; i < 3; ++i) {
+      const double margin = std::max(0.25 * (layout.jaw_upper[i] - layout.jaw_lower[i]), 1.0);
+      layout.jaw_lower[i] -= margin;
+      layout.jaw_upper[i] += margin;
+    }
+  }
   const int n = static_cast<int>(layout.positions.size());
   layout.neighbours.resize(n);
   for (int i = 0; i < n; ++i) {
@@ -90,6 +113,14 @@ MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours) {
     }
   }
   return layout;
+}
+
+std::vector<Vec3> MarkerLayout::PosedPositions(const JawPose& pose) const {
+  if (jaw_weights.empty() || pose.IsZero()) return positions;
+  const Rigid3 t = jaw_rig.Transform(pose);
+  std::vector<Vec3> posed(positions.size());
+  for (size_t k = 0; k < positions.size(); ++k) posed[k] = SkinPoint(t, positions[k], jaw_weights[k]);
+  return posed;
 }
 
 namespace {
@@ -284,10 +315,12 @@ void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detec
   }
   spdlog::debug("labelling: {} candidate points, {} unique, RANSAC best {} markers", points.size(),
                 unique.size(), best_count);
+  jaw_ = JawPose();
   // ICP with mutual nearest neighbours, gate shrinking to inlier_mm / 2.
-  double gate = options_.inlier_mm;
   int inliers = 0;
   double rms = 0;
+  auto icp = [&](const std::vector<Vec3>& M) {
+  double gate = options_.inlier_mm;
   for (int iteration = 0; iteration < 20; ++iteration) {
     std::vector<int> nearest_point(num_markers, -1);
     std::vector<double> nearest_d(num_markers, 0);
@@ -315,6 +348,64 @@ void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detec
     rms = std::sqrt(sum_sq / inliers);
     best = FitRigid(from, to);
     gate = std::max(0.5 * options_.inlier_mm, 0.85 * gate);
+  }
+  };
+  icp(M);
+  // The jaw (file comment, step 2): the pose whose skinned layout puts the
+  // most jaw-weighted markers on candidate points under the head pose, on a
+  // 1-unit grid over the dataset's range, then a 0.25-unit grid around it.
+  positions_ = M;
+  if (!layout_.jaw_weights.empty()) {
+    std::vector<int> moving;
+    for (int k = 0; k < num_markers; ++k) {
+      if (layout_.jaw_weights[k] > 1e-6) moving.push_back(k);
+    }
+    const Rigid3 head = best;
+    auto jaw_score = [&](const JawPose& pose, double* sum_sq) {
+      const Rigid3 t = layout_.jaw_rig.Transform(pose);
+      int count = 0;
+      *sum_sq = 0;
+      for (int k : moving) {
+        double d = 0;
+        if (grid.Nearest(head * SkinPoint(t, M[k], layout_.jaw_weights[k]), options_.inlier_mm, &d) >= 0) {
+          ++count;
+          *sum_sq += d * d;
+        }
+      }
+      return count;
+    };
+    JawPose jaw;
+    double jaw_sq = 0;
+    int jaw_count = jaw_score(jaw, &jaw_sq);
+    auto search = [&](const std::array<double, 3>& lo, const std::array<double, 3>& hi, double step) {
+      for (double a = lo[0]; a <= hi[0] + 1e-9; a += step) {
+        for (double b = lo[1]; b <= hi[1] + 1e-9; b += step) {
+          for (double c = lo[2]; c <= hi[2] + 1e-9; c += step) {
+            const JawPose pose = JawPose::FromArray({a, b, c});
+            double sq = 0;
+            const int count = jaw_score(pose, &sq);
+            if (count > jaw_count || (count == jaw_count && sq < jaw_sq)) {
+              jaw = pose;
+              jaw_count = count;
+              jaw_sq = sq;
+            }
+          }
+        }
+      }
+    };
+    search(layout_.jaw_lower, layout_.jaw_upper, 1.0);
+    const std::array<double, 3> coarse = jaw.ToArray();
+    search({coarse[0] - 1, coarse[1] - 1, coarse[2] - 1},
+           {coarse[0] + 1, coarse[1] + 1, coarse[2] + 1}, 0.25);
+    if (!jaw.IsZero()) {
+      positions_ = layout_.PosedPositions(jaw);
+      icp(positions_);
+    }
+    labelling_.jaw = jaw;
+    jaw_ = jaw;
+    spdlog::debug("labelling: jaw open {:.2f} deg, lateral {:.2f} deg, protrude {:.2f} mm: {} of {} "
+                  "jaw-weighted markers on a point",
+                  jaw.open_deg, jaw.lateral_deg, jaw.protrude_mm, jaw_count, moving.size());
   }
   labelling_.helmet_from_head = best;
   labelling_.inliers = inliers;
@@ -392,7 +483,8 @@ void MarkerTracker::StereoCheck(const std::vector<std::vector<DotDetection>>& de
   }
 }
 
-void MarkerTracker::NameFromLayout(int c, const std::vector<DotDetection>& detections,
+void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
+                                   const std::vector<DotDetection>& detections,
                                    double gate_fraction, bool allow_uncorrected,
                                    std::vector<int>* detection_of) const {
   const int num_markers = static_cast<int>(layout_.names.size());
@@ -401,7 +493,7 @@ void MarkerTracker::NameFromLayout(int c, const std::vector<DotDetection>& detec
   std::vector<char> facing(num_markers, 0);
   std::vector<Vec2> projection(num_markers, Vec2::Zero());
   for (int k = 0; k < num_markers; ++k) {
-    const Vec3 p = cam_from_head * layout_.positions[k];
+    const Vec3 p = cam_from_head * positions[k];
     const Vec3 n = cam_from_head.linear() * layout_.normals[k];
     Vec2 u;
     if (!hc.camera.Project(p, &u) || !hc.camera.IsInImage(u)) continue;
@@ -446,14 +538,20 @@ void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>&
                                    const std::vector<std::vector<int>>& detection_of) {
   if (detection_of.size() < 2) return;
   std::vector<Vec3> from, to;
+  std::vector<int> jaw_markers;  // markers the jaw moves (weight > 0.5), named in both
+  std::vector<Vec3> jaw_points;
   for (size_t k = 0; k < layout_.names.size(); ++k) {
     const int d0 = detection_of[0][k], d1 = detection_of[1][k];
     if (d0 < 0 || d1 < 0) continue;
     const RayApproach a = ClosestApproach(PixelRay(rig_.cameras[0], detections[0][d0].pixel),
                                           PixelRay(rig_.cameras[1], detections[1][d1].pixel));
     if (!a.ok) continue;
-    from.push_back(layout_.positions[k]);
+    from.push_back(positions_[k]);
     to.push_back(a.midpoint);
+    if (!layout_.jaw_weights.empty() && layout_.jaw_weights[k] > 0.5) {
+      jaw_markers.push_back(static_cast<int>(k));
+      jaw_points.push_back(a.midpoint);
+    }
   }
   // Trimmed rigid fit: the expression moves some markers far from neutral.
   for (int iteration = 0; iteration < 3 && from.size() >= 6; ++iteration) {
@@ -475,6 +573,45 @@ void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>&
     from.swap(f2);
     to.swap(t2);
   }
+  if (jaw_markers.size() < 4) return;
+  // The jaw near the previous frame's: a 1-unit grid within +-3, then a
+  // 0.25-unit grid within +-1, inside the dataset's range.
+  const Rigid3 head_from_helmet = helmet_from_head_.inverse();
+  for (Vec3& p : jaw_points) p = head_from_helmet * p;
+  const double cap = options_.inlier_mm * options_.inlier_mm;
+  auto cost = [&](const JawPose& pose) {
+    const Rigid3 t = layout_.jaw_rig.Transform(pose);
+    double sum = 0;
+    for (size_t i = 0; i < jaw_markers.size(); ++i) {
+      const int k = jaw_markers[i];
+      sum += std::min(cap, (SkinPoint(t, layout_.positions[k], layout_.jaw_weights[k]) -
+                            jaw_points[i]).squaredNorm());
+    }
+    return sum;
+  };
+  JawPose best = jaw_;
+  double best_cost = cost(best);
+  for (const auto& [reach, step] : {std::pair<double, double>{3, 1}, {1, 0.25}}) {
+    const std::array<double, 3> centre = best.ToArray();
+    for (int a = -static_cast<int>(reach / step); a <= reach / step; ++a) {
+      for (int b = -static_cast<int>(reach / step); b <= reach / step; ++b) {
+        for (int c = -static_cast<int>(reach / step); c <= reach / step; ++c) {
+          std::array<double, 3> p = {centre[0] + a * step, centre[1] + b * step, centre[2] + c * step};
+          bool inside = true;
+          for (int i = 0; i < 3; ++i) inside &= p[i] >= layout_.jaw_lower[i] && p[i] <= layout_.jaw_upper[i];
+          if (!inside) continue;
+          const JawPose pose = JawPose::FromArray(p);
+          const double value = cost(pose);
+          if (value < best_cost) {
+            best = pose;
+            best_cost = value;
+          }
+        }
+      }
+    }
+  }
+  jaw_ = best;
+  positions_ = layout_.PosedPositions(jaw_);
 }
 
 std::vector<CameraFrameTracks> MarkerTracker::Start(
@@ -495,7 +632,8 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   std::vector<std::vector<Vec2>> projection(num_cameras, std::vector<Vec2>(num_markers));
   helmet_from_head_ = labelling_.helmet_from_head;
   for (int c = 0; c < num_cameras; ++c) {
-    NameFromLayout(c, detections[c], options_.name_gate, true, &detection_of[c]);
+    NameFromLayout(c, positions_, detections[c], options_.name_gate, true,
+                   &detection_of[c]);
   }
   StereoCheck(detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
@@ -583,7 +721,10 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   // current head pose, corrected by their named neighbours.
   UpdateHeadPose(detections, detection_of);
   for (int c = 0; c < num_cameras; ++c) {
-    if (present[c]) NameFromLayout(c, detections[c], options_.reacquire_gate, false, &detection_of[c]);
+    if (present[c]) {
+      NameFromLayout(c, positions_, detections[c], options_.reacquire_gate, false,
+                     &detection_of[c]);
+    }
   }
   StereoCheck(detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {

@@ -13,6 +13,13 @@
 //      space at rest), scored by the markers with a candidate point within
 //      `inlier_mm`; then ICP with mutual nearest neighbours and a shrinking
 //      gate. Closed-form rigid fits: Umeyama 1991 (Eigen::umeyama).
+//      With a jaw rig, the jaw pose is then searched too: the jaw is the
+//      one large articulation of the markers, and a take may start with
+//      the mouth open. On a grid over the actor's dataset jaw range
+//      (widened), the pose whose skinned layout (core/jaw.h) puts the most
+//      markers within `inlier_mm` of a candidate point (then the smallest
+//      residual) wins, is refined on a finer grid, and ICP is redone with
+//      the posed layout; the names of step 3 come from it.
 //   3. Names, per camera: each marker facing the camera is projected with
 //      the registered pose; a global assignment (tracking/assignment.h)
 //      matches projections to detections within a gate of `name_gate` x
@@ -29,8 +36,11 @@
 //   detections by one gated global assignment (two names never take one
 //   dot), the gate a fraction of the distance to the nearest other dot.
 //   Then the head pose is refitted (trimmed rigid fit of the layout to the
-//   markers named in both cameras) and the lost and never-seen dots are
-//   named as at the reference frame (step 3) with the tighter
+//   markers named in both cameras), with a jaw rig the jaw pose too (a
+//   local grid search around the previous frame's minimising the truncated
+//   squared distances of the jaw-weighted markers' triangulated points to
+//   the posed layout), and the lost and never-seen dots are named from the
+//   layout at that jaw pose as at the reference frame (step 3) with the tighter
 //   `reacquire_gate`: projection under the pose, corrected by the named
 //   neighbours' residuals, unambiguous matches only. A dot named in both
 //   cameras whose rays miss by more than `epipolar_gap_mm` is a swap: the
@@ -38,10 +48,12 @@
 //   gate is hidden: no row, the track is lost until re-acquired.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
 #include "core/actor.h"
+#include "core/jaw.h"
 #include "core/calibration.h"
 #include "core/options.h"
 #include "tracking/dot_detector.h"
@@ -75,6 +87,15 @@ struct MarkerLayout {
   std::vector<Vec3> positions;            // head space (mm)
   std::vector<Vec3> normals;              // unit surface normals
   std::vector<std::vector<int>> neighbours;  // nearest markers on the neutral, nearest first
+  // The jaw: the actor's rig (without its per-vertex weights), each
+  // marker's skinning weight (empty: no jaw rig), and the range of the
+  // dataset's jaw poses widened by a quarter of it (at least 1 deg / mm).
+  JawRig jaw_rig;
+  std::vector<double> jaw_weights;
+  std::array<double, 3> jaw_lower{}, jaw_upper{};
+
+  // The positions with the jaw at `pose` (as they are without a rig).
+  std::vector<Vec3> PosedPositions(const JawPose& pose) const;
 };
 MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours);
 
@@ -95,6 +116,7 @@ struct ReferenceLabelling {
   bool ok = false;
   std::string reason;          // why not, when !ok
   Rigid3 helmet_from_head = Rigid3::Identity();
+  JawPose jaw;                 // the jaw pose found (zero without a jaw rig)
   int candidate_points = 0;    // stereo pairs within the gap
   int inliers = 0;             // markers matched by the registration
   double rms_mm = 0;           // registration residual over the inliers
@@ -131,11 +153,13 @@ class MarkerTracker {
              const std::vector<Vec2>& prediction, const std::vector<char>& predicted,
              const std::vector<double>& gate_fraction, bool require_unambiguous_all,
              std::vector<int>* detection_of) const;
-  // Names unnamed markers of camera c from the layout under
-  // helmet_from_head_ (file comment, step 3), in rounds.
-  void NameFromLayout(int c, const std::vector<DotDetection>& detections, double gate_fraction,
+  // Names unnamed markers of camera c from the layout `positions` (head
+  // space) under helmet_from_head_ (file comment, step 3), in rounds.
+  void NameFromLayout(int c, const std::vector<Vec3>& positions,
+                      const std::vector<DotDetection>& detections, double gate_fraction,
                       bool allow_uncorrected, std::vector<int>* detection_of) const;
-  // helmet_from_head_ from the markers named in both cameras (trimmed fit).
+  // helmet_from_head_ from the markers named in both cameras (trimmed fit),
+  // then jaw_ and positions_ (with a jaw rig).
   void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
                       const std::vector<std::vector<int>>& detection_of);
   void StereoCheck(const std::vector<std::vector<DotDetection>>& detections,
@@ -150,6 +174,8 @@ class MarkerTracker {
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
   std::vector<double> dot_size_px_;
   Rigid3 helmet_from_head_ = Rigid3::Identity();
+  JawPose jaw_;                  // the current jaw pose (labelled, then refitted per frame)
+  std::vector<Vec3> positions_;  // the layout at jaw_ (head space)
 };
 
 }  // namespace hmc

@@ -230,7 +230,11 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   j["labelling"] = {{"ok", summary.labelling.ok},
                     {"candidate_points", summary.labelling.candidate_points},
                     {"inliers", summary.labelling.inliers},
-                    {"rms_mm", summary.labelling.rms_mm}};
+                    {"rms_mm", summary.labelling.rms_mm},
+                    {"jaw",
+                     {{"open_deg", summary.labelling.jaw.open_deg},
+                      {"lateral_deg", summary.labelling.jaw.lateral_deg},
+                      {"protrude_mm", summary.labelling.jaw.protrude_mm}}}};
   j["warnings"] = summary.warnings;  // with every frame that failed to decode
   j["summary"] = {{"frames", summary.frames},
                   {"skipped_views", summary.skipped_views},
