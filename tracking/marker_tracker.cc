@@ -186,6 +186,22 @@ double AngleDeg(const Rigid3& t) {
   return Eigen::AngleAxisd(t.linear()).angle() * 180 / M_PI;
 }
 
+// Calls visit(pose) for every jaw pose lo + (i, j, k) x step within [lo, hi]
+// (open_deg, lateral_deg, protrude_mm).
+template <typename Visit>
+void ForEachJawPose(const std::array<double, 3>& lo, const std::array<double, 3>& hi, double step,
+                    Visit&& visit) {
+  std::array<int, 3> n{};
+  for (int i = 0; i < 3; ++i) n[i] = static_cast<int>(std::floor((hi[i] - lo[i]) / step + 1e-9));
+  for (int a = 0; a <= n[0]; ++a) {
+    for (int b = 0; b <= n[1]; ++b) {
+      for (int c = 0; c <= n[2]; ++c) {
+        visit(JawPose::FromArray({lo[0] + a * step, lo[1] + b * step, lo[2] + c * step}));
+      }
+    }
+  }
+}
+
 int FlowWindow(double dot_size_px, double window) {
   return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
 }
@@ -319,36 +335,36 @@ void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detec
   // ICP with mutual nearest neighbours, gate shrinking to inlier_mm / 2.
   int inliers = 0;
   double rms = 0;
-  auto icp = [&](const std::vector<Vec3>& M) {
-  double gate = options_.inlier_mm;
-  for (int iteration = 0; iteration < 20; ++iteration) {
-    std::vector<int> nearest_point(num_markers, -1);
-    std::vector<double> nearest_d(num_markers, 0);
-    for (int k = 0; k < num_markers; ++k) {
-      nearest_point[k] = grid.Nearest(best * M[k], gate, &nearest_d[k]);
-    }
-    // Mutual: the point's nearest marker is k.
-    std::unordered_map<int, std::pair<double, int>> point_best;
-    for (int k = 0; k < num_markers; ++k) {
-      if (nearest_point[k] < 0) continue;
-      auto it = point_best.find(nearest_point[k]);
-      if (it == point_best.end() || nearest_d[k] < it->second.first) {
-        point_best[nearest_point[k]] = {nearest_d[k], k};
+  auto icp = [&](const std::vector<Vec3>& positions) {
+    double gate = options_.inlier_mm;
+    for (int iteration = 0; iteration < 20; ++iteration) {
+      std::vector<int> nearest_point(num_markers, -1);
+      std::vector<double> nearest_d(num_markers, 0);
+      for (int k = 0; k < num_markers; ++k) {
+        nearest_point[k] = grid.Nearest(best * positions[k], gate, &nearest_d[k]);
       }
+      // Mutual: the point's nearest marker is k.
+      std::unordered_map<int, std::pair<double, int>> point_best;
+      for (int k = 0; k < num_markers; ++k) {
+        if (nearest_point[k] < 0) continue;
+        auto it = point_best.find(nearest_point[k]);
+        if (it == point_best.end() || nearest_d[k] < it->second.first) {
+          point_best[nearest_point[k]] = {nearest_d[k], k};
+        }
+      }
+      std::vector<Vec3> from, to;
+      double sum_sq = 0;
+      for (const auto& [p, dk] : point_best) {
+        from.push_back(positions[dk.second]);
+        to.push_back(points[p]);
+        sum_sq += dk.first * dk.first;
+      }
+      if (from.size() < 3) break;
+      inliers = static_cast<int>(from.size());
+      rms = std::sqrt(sum_sq / inliers);
+      best = FitRigid(from, to);
+      gate = std::max(0.5 * options_.inlier_mm, 0.85 * gate);
     }
-    std::vector<Vec3> from, to;
-    double sum_sq = 0;
-    for (const auto& [p, dk] : point_best) {
-      from.push_back(M[dk.second]);
-      to.push_back(points[p]);
-      sum_sq += dk.first * dk.first;
-    }
-    if (from.size() < 3) break;
-    inliers = static_cast<int>(from.size());
-    rms = std::sqrt(sum_sq / inliers);
-    best = FitRigid(from, to);
-    gate = std::max(0.5 * options_.inlier_mm, 0.85 * gate);
-  }
   };
   icp(M);
   // The jaw (file comment, step 2): the pose whose skinned layout puts the
@@ -378,20 +394,15 @@ void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detec
     double jaw_sq = 0;
     int jaw_count = jaw_score(jaw, &jaw_sq);
     auto search = [&](const std::array<double, 3>& lo, const std::array<double, 3>& hi, double step) {
-      for (double a = lo[0]; a <= hi[0] + 1e-9; a += step) {
-        for (double b = lo[1]; b <= hi[1] + 1e-9; b += step) {
-          for (double c = lo[2]; c <= hi[2] + 1e-9; c += step) {
-            const JawPose pose = JawPose::FromArray({a, b, c});
-            double sq = 0;
-            const int count = jaw_score(pose, &sq);
-            if (count > jaw_count || (count == jaw_count && sq < jaw_sq)) {
-              jaw = pose;
-              jaw_count = count;
-              jaw_sq = sq;
-            }
-          }
+      ForEachJawPose(lo, hi, step, [&](const JawPose& pose) {
+        double sq = 0;
+        const int count = jaw_score(pose, &sq);
+        if (count > jaw_count || (count == jaw_count && sq < jaw_sq)) {
+          jaw = pose;
+          jaw_count = count;
+          jaw_sq = sq;
         }
-      }
+      });
     };
     search(layout_.jaw_lower, layout_.jaw_upper, 1.0);
     const std::array<double, 3> coarse = jaw.ToArray();
@@ -593,22 +604,18 @@ void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>&
   double best_cost = cost(best);
   for (const auto& [reach, step] : {std::pair<double, double>{3, 1}, {1, 0.25}}) {
     const std::array<double, 3> centre = best.ToArray();
-    for (int a = -static_cast<int>(reach / step); a <= reach / step; ++a) {
-      for (int b = -static_cast<int>(reach / step); b <= reach / step; ++b) {
-        for (int c = -static_cast<int>(reach / step); c <= reach / step; ++c) {
-          std::array<double, 3> p = {centre[0] + a * step, centre[1] + b * step, centre[2] + c * step};
-          bool inside = true;
-          for (int i = 0; i < 3; ++i) inside &= p[i] >= layout_.jaw_lower[i] && p[i] <= layout_.jaw_upper[i];
-          if (!inside) continue;
-          const JawPose pose = JawPose::FromArray(p);
-          const double value = cost(pose);
-          if (value < best_cost) {
-            best = pose;
-            best_cost = value;
-          }
-        }
-      }
+    std::array<double, 3> lo{}, hi{};
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::max(layout_.jaw_lower[i], centre[i] - reach);
+      hi[i] = std::min(layout_.jaw_upper[i], centre[i] + reach);
     }
+    ForEachJawPose(lo, hi, step, [&](const JawPose& pose) {
+      const double value = cost(pose);
+      if (value < best_cost) {
+        best = pose;
+        best_cost = value;
+      }
+    });
   }
   jaw_ = best;
   positions_ = layout_.PosedPositions(jaw_);
