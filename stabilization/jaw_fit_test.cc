@@ -134,6 +134,7 @@ TEST(JawFitTest, FitsOnTooFewJawMarkersDoNotAnchorTheInterpolation) {
     perf.seed = seed;
     ShotTruth shot = MakeShotTruth(a, perf, 0.0);
     JawOptions options;
+    options.min_marker_fraction = 0.75;  // the rule under test (off by default)
     const std::vector<int> jaw = JawMarkers(a.markers, a.actor, options);
     ASSERT_GE(jaw.size() * options.min_marker_fraction, options.min_jaw_markers + 1.0);
     for (int f = 12; f <= 15; ++f) {
