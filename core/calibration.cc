@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/options.h"
+#include "core/yaml_values.h"
 
 namespace hmc {
 
@@ -86,76 +87,72 @@ void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig) {
 
 namespace {
 
-HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path);
+using yaml_values::Integer;
+using yaml_values::Number;
+using yaml_values::Required;
+using yaml_values::Text;
+
+constexpr int kMaxImageSide = 65536;  // px: larger is not a camera
+
+// An `!!opencv-matrix` node (rows, cols, dt, data) as a rows x cols CV_64F
+// matrix.
+cv::Mat ReadMatrix(const YAML::Node& node, const std::string& what,
+                   const std::filesystem::path& path) {
+  if (!node.IsMap()) {
+    ThrowInputError(path, node.Mark().line + 1, "'{}' must be a matrix (rows, cols, dt, data)",
+                    what);
+  }
+  const int rows = Integer(Required(node, what, "rows", path), what + ".rows", 1, 16, path);
+  const int cols = Integer(Required(node, what, "cols", path), what + ".cols", 1, 16, path);
+  const std::string dt = Text(Required(node, what, "dt", path), what + ".dt", path);
+  if (dt != "d" && dt != "f") {
+    ThrowInputError(path, node["dt"].Mark().line + 1, "'{}.dt' must be d or f, not '{}'", what,
+                    dt);
+  }
+  const std::vector<double> data = yaml_values::Numbers(
+      Required(node, what, "data", path), static_cast<size_t>(rows * cols), what + ".data", path);
+  cv::Mat m(rows, cols, CV_64F);
+  for (int i = 0; i < rows * cols; ++i) m.at<double>(i / cols, i % cols) = data[i];
+  return m;
+}
 
 }  // namespace
 
 HelmetRig ReadCalibration(const std::filesystem::path& path) {
-  // OpenCV throws on malformed nodes (an `!!opencv-matrix` without `dt`,
-  // found by fuzzing: docs/reliability.md); that is bad input, not a crash.
-  try {
-    return ReadCalibrationFileStorage(path);
-  } catch (const cv::Exception& e) {
-    ThrowInputError(path, 0, "not a valid calibration file: {}", e.err);
-  }
-}
-
-namespace {
-
-HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path) {
-  const std::string text = ReadFile(path);
-  {
-    // A key given twice is refused like in every YAML hmc reads
-    // (docs/reliability.md): yaml-cpp sees the text once OpenCV's
-    // `%YAML:1.0` directive is blanked (line numbers kept); text it cannot
-    // parse is left to FileStorage's own errors.
-    std::string yaml = text;
-    if (yaml.rfind("%YAML:", 0) == 0) yaml.erase(0, std::min(yaml.find('\n'), yaml.size()));
-    bool parsed = true;
-    try {
-      YAML::Load(yaml);
-    } catch (const YAML::Exception&) {
-      parsed = false;
-    }
-    if (parsed) ParseYaml(yaml, path);
-  }
-  cv::FileStorage fs;
-  try {
-    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
-  } catch (const cv::Exception& e) {
-    ThrowInputError(path, 0, "not an OpenCV FileStorage file: {}", e.what());
-  }
-  if (!fs.isOpened()) ThrowInputError(path, 0, "cannot parse as FileStorage YAML");
+  // calibration.yaml is written by OpenCV's FileStorage (WriteCalibration)
+  // but read with yaml-cpp: FileStorage's parser hangs on some malformed
+  // text (found by fuzzing: docs/reliability.md), yaml-cpp gives line
+  // numbers and refuses repeated keys (ParseYaml). OpenCV's `%YAML:1.0`
+  // directive is not YAML 1.2: it is blanked, keeping the line numbers.
+  std::string text = ReadFile(path);
+  if (text.rfind("%YAML:", 0) == 0) text.erase(0, std::min(text.find('\n'), text.size()));
+  const YAML::Node root = ParseYaml(text, path);
+  if (!root.IsMap()) ThrowInputError(path, 0, "not a calibration file (a map of units, cameras, tags)");
   HelmetRig rig;
-  const cv::FileNode cameras = fs["cameras"];
-  if (!cameras.isSeq() || cameras.size() == 0) {
+  const YAML::Node cameras = root["cameras"];
+  if (!cameras || !cameras.IsSequence() || cameras.size() == 0) {
     ThrowInputError(path, 0, "missing 'cameras' sequence");
   }
   // Every key is checked by name, so an incomplete or inconsistent file is
   // refused with the file and the key ("cameras[1].cam_from_helmet").
   int index = 0;
-  for (const cv::FileNode& node : cameras) {
+  for (const YAML::Node& node : cameras) {
     const std::string where = fmt::format("cameras[{}]", index++);
-    auto require = [&](const cv::FileNode& n, const char* key) {
-      if (n[key].empty()) ThrowInputError(path, 0, "missing key '{}.{}'", where, key);
-      return n[key];
-    };
     HelmetCamera c;
-    require(node, "name") >> c.name;
-    if (c.name.empty()) ThrowInputError(path, 0, "'{}.name' is empty", where);
-    cv::Mat K, D, cam_from_helmet;
-    require(node, "K") >> K;
-    require(node, "D") >> D;
-    require(node, "cam_from_helmet") >> cam_from_helmet;
-    const cv::FileNode w = require(node, "image_width"), h = require(node, "image_height");
-    if (!w.isInt() || !h.isInt() || static_cast<int>(w) <= 0 || static_cast<int>(h) <= 0) {
-      ThrowInputError(path, 0, "'{}.image_width' and '.image_height' must be positive integers",
-                      where);
-    }
+    c.name = Text(Required(node, where, "name", path), where + ".name", path);
+    if (c.name.empty()) ThrowInputError(path, node.Mark().line + 1, "'{}.name' is empty", where);
+    const cv::Mat K = ReadMatrix(Required(node, where, "K", path), where + ".K", path);
+    const cv::Mat D = ReadMatrix(Required(node, where, "D", path), where + ".D", path);
+    const cv::Mat cam_from_helmet =
+        ReadMatrix(Required(node, where, "cam_from_helmet", path), where + ".cam_from_helmet", path);
+    const int w = Integer(Required(node, where, "image_width", path), where + ".image_width", 1,
+                          kMaxImageSide, path);
+    const int h = Integer(Required(node, where, "image_height", path), where + ".image_height", 1,
+                          kMaxImageSide, path);
     try {
-      c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(static_cast<int>(w), static_cast<int>(h)));
+      c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(w, h));
     } catch (const InputError& e) {
-      ThrowInputError(path, 0, "'{}.K' / '{}.D': {}", where, where, e.what());
+      ThrowInputError(path, node.Mark().line + 1, "'{}.K' / '{}.D': {}", where, where, e.what());
     }
     if (!(c.camera.fx > 0 && c.camera.fy > 0) || !std::isfinite(c.camera.cx) ||
         !std::isfinite(c.camera.cy)) {
@@ -164,29 +161,26 @@ HelmetRig ReadCalibrationFileStorage(const std::filesystem::path& path) {
     c.cam_from_helmet = RigidFromCv(cam_from_helmet, path, "'" + where + ".cam_from_helmet'");
     rig.cameras.push_back(c);
   }
-  const cv::FileNode tags = fs["tags"];
-  if (!tags.empty()) {
-    if (fs["tag_family"].empty()) ThrowInputError(path, 0, "missing key 'tag_family'");
-    fs["tag_family"] >> rig.tag_family;
-  }
-  index = 0;
-  for (const cv::FileNode& node : tags) {
-    const std::string where = fmt::format("tags[{}]", index++);
-    for (const char* key : {"id", "size", "helmet_from_tag"}) {
-      if (node[key].empty()) ThrowInputError(path, 0, "missing key '{}.{}'", where, key);
+  const YAML::Node tags = root["tags"];
+  if (tags && !tags.IsNull()) {
+    if (!tags.IsSequence()) ThrowInputError(path, tags.Mark().line + 1, "'tags' must be a sequence");
+    if (tags.size() > 0 || root["tag_family"]) {
+      rig.tag_family = Text(Required(root, "calibration", "tag_family", path), "tag_family", path);
     }
-    HelmetTag t;
-    t.id = static_cast<int>(node["id"]);
-    t.size = static_cast<double>(node["size"]);
-    cv::Mat pose;
-    node["helmet_from_tag"] >> pose;
-    if (!(t.size > 0)) ThrowInputError(path, 0, "'{}.size' must be positive", where);
-    t.helmet_from_tag = RigidFromCv(pose, path, "'" + where + ".helmet_from_tag'");
-    rig.tags.push_back(t);
+    index = 0;
+    for (const YAML::Node& node : tags) {
+      const std::string where = fmt::format("tags[{}]", index++);
+      HelmetTag t;
+      t.id = Integer(Required(node, where, "id", path), where + ".id", 0, 1 << 20, path);
+      t.size = Number(Required(node, where, "size", path), where + ".size", path);
+      if (!(t.size > 0)) ThrowInputError(path, node.Mark().line + 1, "'{}.size' must be positive", where);
+      t.helmet_from_tag = RigidFromCv(
+          ReadMatrix(Required(node, where, "helmet_from_tag", path), where + ".helmet_from_tag", path),
+          path, "'" + where + ".helmet_from_tag'");
+      rig.tags.push_back(t);
+    }
   }
   return rig;
 }
-
-}  // namespace
 
 }  // namespace hmc

@@ -83,6 +83,28 @@ TEST(CalibrationValidationTest, FuzzedMalformedMatrixIsAnInputError) {
   EXPECT_THROW(ReadCalibration(file), InputError);
 }
 
+// Found by fuzzing: text on which OpenCV's FileStorage parser loops
+// forever (the file is read with yaml-cpp now, core/calibration.h). A
+// return to that parser would hang this test until its timeout.
+TEST(CalibrationValidationTest, FuzzedTextThatHungOpenCvIsRefused) {
+  const char* root = std::getenv("HMC_SOURCE_DIR");
+  const std::filesystem::path file = std::filesystem::path(root ? root : ".") /
+                                     "tests/fixtures/fuzz_crashes/calibration_hangs_opencv_parser.yaml";
+  ASSERT_TRUE(std::filesystem::exists(file));
+  EXPECT_THROW(ReadCalibration(file), InputError);
+}
+
+// A matrix node holding a huge size or too few numbers is refused before
+// any allocation, naming the key.
+TEST(CalibrationValidationTest, MatrixSizesAreCheckedAgainstTheirData) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ExpectRefused(dir.path(), Replace(valid, "rows: 3", "rows: 1000000000"), "cameras[0].K.rows");
+  ExpectRefused(dir.path(), Replace(valid, "cols: 3", "cols: 4"), "cameras[0].K.data");
+  ExpectRefused(dir.path(), Replace(valid, "image_width: 640", "image_width: 1e80"),
+                "cameras[0].image_width");
+}
+
 TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {
   TempDir dir;
   const std::string valid = ValidCalibration(dir.path());

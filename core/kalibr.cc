@@ -9,46 +9,17 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/options.h"
+#include "core/yaml_values.h"
 
 namespace hmc {
 namespace {
 
+using yaml_values::Numbers;
+using yaml_values::Required;
+using yaml_values::Text;
+
 constexpr double kMmPerMetre = 1000;
-
-YAML::Node Required(const YAML::Node& map, const std::string& camera, const char* key,
-                    const std::filesystem::path& path) {
-  const YAML::Node node = map[key];
-  if (!node) ThrowInputError(path, 0, "missing key '{}.{}'", camera, key);
-  return node;
-}
-
-std::vector<double> Numbers(const YAML::Node& node, size_t count, const std::string& key,
-                            const std::filesystem::path& path) {
-  if (!node.IsSequence() || node.size() != count) {
-    ThrowInputError(path, node.Mark().line + 1, "'{}' must be a list of {} numbers", key, count);
-  }
-  std::vector<double> out;
-  for (const YAML::Node& v : node) {
-    double x = 0;
-    try {
-      x = v.as<double>();
-    } catch (const YAML::Exception&) {
-      ThrowInputError(path, v.Mark().line + 1, "'{}' holds a value that is not a number", key);
-    }
-    if (!std::isfinite(x)) ThrowInputError(path, v.Mark().line + 1, "'{}' is not finite", key);
-    out.push_back(x);
-  }
-  return out;
-}
-
-std::string Text(const YAML::Node& node, const std::string& key,
-                 const std::filesystem::path& path) {
-  try {
-    return node.as<std::string>();
-  } catch (const YAML::Exception&) {
-    ThrowInputError(path, node.Mark().line + 1, "'{}' must be a string", key);
-  }
-}
+constexpr int kMaxImageSide = 65536;  // px: larger is not a camera
 
 }  // namespace
 
@@ -87,10 +58,11 @@ std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path) 
       ThrowInputError(path, cam["intrinsics"].Mark().line + 1,
                       "'{}.intrinsics': focal lengths must be positive", name);
     }
-    if (!(res[0] >= 1 && res[1] >= 1) || res[0] != std::floor(res[0]) ||
-        res[1] != std::floor(res[1])) {
+    if (!(res[0] >= 1 && res[1] >= 1 && res[0] <= kMaxImageSide && res[1] <= kMaxImageSide) ||
+        res[0] != std::floor(res[0]) || res[1] != std::floor(res[1])) {
+      // Bounded before the conversion to int (found by fuzzing: 1e80).
       ThrowInputError(path, cam["resolution"].Mark().line + 1,
-                      "'{}.resolution' must be two positive integers", name);
+                      "'{}.resolution' must be two integers from 1 to {}", name, kMaxImageSide);
     }
     k.camera.width = static_cast<int>(res[0]);
     k.camera.height = static_cast<int>(res[1]);

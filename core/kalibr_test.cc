@@ -135,6 +135,12 @@ TEST(KalibrTest, BadCamchainsAreRefusedNamingTheKey) {
                 "  intrinsics: [700, 700, 640, 512]\n  distortion_coeffs: [0, 0, 0, 0]\n",
                 "cam0.resolution");
   ExpectRefused("something: 1\n", "cam0");
+  // Found by fuzzing (docs/reliability.md): a resolution of 1e80 passed as
+  // "an integer" and overflowed the conversion to int (UBSan).
+  ExpectRefused("cam0:\n  camera_model: pinhole\n  distortion_model: equidistant\n"
+                "  intrinsics: [700, 700, 640, 512]\n  distortion_coeffs: [0, 0, 0, 0]\n"
+                "  resolution: [1e80, 1024]\n",
+                "cam0.resolution");
 }
 
 }  // namespace
