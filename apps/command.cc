@@ -63,14 +63,7 @@ void AddRegisteredCommands(CLI::App* app, CommandRun* run) {
 
 void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs) {
   for (const OutputFlag& o : outputs) {
-    if (o.path.empty()) continue;
-    const std::filesystem::path dir = o.path.has_parent_path() ? o.path.parent_path() : ".";
-    const std::filesystem::path package = EnclosingActorPackage(dir);
-    if (!package.empty()) {
-      ThrowInputError(o.path, 0, "{}: refusing to write inside the actor package {}", o.flag,
-                      package.string());
-    }
-    PrepareOutputPath(o.path, o.flag, o.folder);
+    if (!o.path.empty()) PrepareOutputPath(o.path, o.flag, o.folder);
   }
 }
 

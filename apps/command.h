@@ -49,11 +49,8 @@ struct OutputFlag {
 
 // What every command that writes calls before it reads or computes
 // anything (docs/reliability.md), so that a bad output path costs no work
-// and replaces no earlier output: PrepareOutputPath for each given flag
-// (its folder created and writable, a file output not a folder, a folder
-// output not a file), and no output inside an actor package (`hmc index
-// --into_package` is the one command that writes into one). Throws
-// InputError naming the path and the flag.
+// and replaces no earlier output: PrepareOutputPath (core/file_util.h) for
+// each given flag. Throws InputError naming the path and the flag.
 void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs);
 
 // Adds `--config FILE` and one flag `--<field>` per registered option field

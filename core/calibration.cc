@@ -92,7 +92,7 @@ using yaml_values::Number;
 using yaml_values::Required;
 using yaml_values::Text;
 
-constexpr int kMaxImageSide = 65536;  // px: larger is not a camera
+using yaml_values::kMaxImageSide;
 
 // An `!!opencv-matrix` node (rows, cols, dt, data) as a rows x cols CV_64F
 // matrix.

@@ -151,6 +151,11 @@ void PrepareOutputPath(const fs::path& path, const std::string& what, bool folde
     ThrowInputError(path, 0, "{}: exists and is not a folder", what);
   }
   const fs::path dir = path.has_parent_path() ? path.parent_path() : ".";
+  const fs::path package = EnclosingActorPackage(dir);
+  if (!package.empty()) {
+    ThrowInputError(path, 0, "{}: refusing to write inside the actor package {}", what,
+                    package.string());
+  }
   std::error_code error;
   fs::create_directories(dir, error);
   if (error) {
@@ -202,12 +207,6 @@ void WriteFolderAtomic(const fs::path& dir_in, const std::string& what,
   static std::atomic<int> counter{0};
   fs::path dir = dir_in;
   if (dir.filename().empty()) dir = dir.parent_path();  // "out/"
-  // The package first: refusing must not leave folders created inside it.
-  const fs::path package = EnclosingActorPackage(dir.has_parent_path() ? dir.parent_path() : ".");
-  if (!package.empty()) {
-    ThrowInputError(dir, 0, "{}: refusing to write inside the actor package {}", what,
-                    package.string());
-  }
   PrepareOutputPath(dir, what, true);
   std::error_code ec;
   const bool exists = fs::exists(dir, ec);

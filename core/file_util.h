@@ -39,9 +39,11 @@ void EnsureDirectory(const std::filesystem::path& dir);
 
 // Checks an output path before any work is done (docs/reliability.md):
 // creates its folder (and parents), and throws InputError naming `path` and
-// `what` (the flag: "--diagnostics") if that folder cannot be created or
-// written, or if `path` is an existing folder (a file output) or an
-// existing file (a folder output, folder = true).
+// `what` (the flag: "--diagnostics") if it lies inside an actor package
+// (decided before any folder is created; `hmc index --into_package` is the
+// one writer into a package, and does not come here), if that folder
+// cannot be created or written, or if `path` is an existing folder (a file
+// output) or an existing file (a folder output, folder = true).
 void PrepareOutputPath(const std::filesystem::path& path,
                        const std::string& what, bool folder = false);
 

@@ -19,7 +19,7 @@ using yaml_values::Required;
 using yaml_values::Text;
 
 constexpr double kMmPerMetre = 1000;
-constexpr int kMaxImageSide = 65536;  // px: larger is not a camera
+using yaml_values::kMaxImageSide;
 
 }  // namespace
 

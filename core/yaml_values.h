@@ -11,6 +11,10 @@
 
 namespace hmc::yaml_values {
 
+// The largest image side (px) a rig file may give: larger is not a camera,
+// and the bound keeps every size conversion to int defined.
+constexpr int kMaxImageSide = 65536;
+
 // map[key]; InputError "missing key 'where.key'" when absent.
 YAML::Node Required(const YAML::Node& map, const std::string& where, const char* key,
                     const std::filesystem::path& path);

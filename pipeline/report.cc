@@ -141,9 +141,23 @@ std::string FrameRuns(const std::vector<int>& frames) {
   return text;
 }
 
+// A list of bad frames ([{frame, reason}]) as warnings: one line per reason
+// with the frames it concerns ("stabilize: frames 3, 7-9 interpolated: ...").
+void FrameListWarnings(const nlohmann::json& list, const std::string& stage, const char* what,
+                       std::vector<std::string>* out) {
+  std::map<std::string, std::vector<int>> by_reason;
+  for (const auto& f : list) {
+    if (f.is_object()) by_reason[f.value("reason", std::string())].push_back(f.value("frame", 0));
+  }
+  for (auto& [reason, frames] : by_reason) {
+    std::sort(frames.begin(), frames.end());
+    out->push_back(fmt::format("{}: {} {} {}: {}", stage, frames.size() == 1 ? "frame" : "frames",
+                               FrameRuns(frames), what, reason));
+  }
+}
+
 // A stage summary's `warnings`, and its lists of bad frames
-// (`flagged_frames`, `interpolated_frames`: [{frame, reason}]), one line per
-// reason with the frames it concerns.
+// (`flagged_frames`, `interpolated_frames`).
 void CollectWarnings(const nlohmann::json& j, const std::string& stage,
                      std::vector<std::string>* out) {
   if (j.is_object()) {
@@ -153,16 +167,7 @@ void CollectWarnings(const nlohmann::json& j, const std::string& stage,
           out->push_back(stage + ": " + (w.is_string() ? w.get<std::string>() : w.dump()));
         }
       } else if ((k == "flagged_frames" || k == "interpolated_frames") && v.is_array()) {
-        std::map<std::string, std::vector<int>> by_reason;
-        for (const auto& f : v) {
-          if (f.is_object()) by_reason[f.value("reason", std::string())].push_back(f.value("frame", 0));
-        }
-        for (auto& [reason, frames] : by_reason) {
-          std::sort(frames.begin(), frames.end());
-          out->push_back(fmt::format("{}: {} {} {}: {}", stage, frames.size() == 1 ? "frame" : "frames",
-                                     FrameRuns(frames),
-                                     k == "flagged_frames" ? "flagged" : "interpolated", reason));
-        }
+        FrameListWarnings(v, stage, k == "flagged_frames" ? "flagged" : "interpolated", out);
       } else {
         CollectWarnings(v, stage, out);
       }
@@ -425,6 +430,7 @@ void ReportWriter::SolveSection(const Actor& actor) {
   const fs::path diag = Stage("solve", "diagnostics.json");
   if (Exists(diag)) {
     PlotSeries outside{"outside their data (%)", {}}, residual{"mean residual (0.01 mm)", {}};
+    nlohmann::json flagged = nlohmann::json::array();
     // Each frame's record is used as the parser completes it, then dropped:
     // the file grows with the shot (800 MB for 2,000 frames of a small
     // actor), its parsed tree would be several times that.
@@ -435,8 +441,7 @@ void ReportWriter::SolveSection(const Actor& actor) {
       }
       const int frame = f.value("frame", 0);
       if (!f.value("ok", false)) {
-        summary_.warnings.push_back(fmt::format("solve: frame {} flagged: {}", frame,
-                                                f.value("reason", std::string())));
+        flagged.push_back({{"frame", frame}, {"reason", f.value("reason", std::string())}});
         return false;
       }
       int n = 0, projected = 0;
@@ -460,6 +465,7 @@ void ReportWriter::SolveSection(const Actor& actor) {
     } catch (const nlohmann::json::exception& e) {
       ThrowInputError(diag, 0, "not JSON: {}", e.what());
     }
+    FrameListWarnings(flagged, "solve", "flagged", &summary_.warnings);
     Plot({outside, residual}, {"solve: bundles outside their data, bundle residual", "frame", "", 640, 220, true});
   }
   if (!Exists(shot_ / "truth.pc2")) return;
