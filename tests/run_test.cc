@@ -274,7 +274,8 @@ TEST_F(RunTest, ACorruptFrameInOneCameraIsFlaggedInEveryLaterStage) {
                   (shot / "truth.pc2").string(), (work / "solve" / "mesh.pc2").string()),
       d);
   ASSERT_EQ(eval.exit_code, 0) << eval.err;
-  for (const auto& f : nlohmann::json::parse(eval.out)["per_frame"]) {
+  const nlohmann::json metrics = nlohmann::json::parse(eval.out);
+  for (const auto& f : metrics["per_frame"]) {
     if (f["frame"].get<int>() == kBad) continue;
     EXPECT_LT(f["face"]["mean_mm"].get<double>(), 0.3) << f["frame"];
   }
