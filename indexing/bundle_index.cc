@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <numeric>
 #include <tuple>
@@ -311,24 +312,54 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
       options.max_edge_mm > 0 ? options.max_edge_mm * options.max_edge_mm
                               : kInf;
   auto x = [&](int i) -> Vec3 { return points.row(i).transpose(); };
-  // Which lower-dimensional simplices are already faces of kept ones: only
-  // the others are kept, so they add coverage without duplicating.
-  std::vector<uint8_t> covered_triangle(static_cast<size_t>(P) * P * P, 0);
-  std::vector<uint8_t> covered_edge(static_cast<size_t>(P) * P, 0);
-  auto tri_key = [P](int i, int j, int k) {
-    return (static_cast<size_t>(i) * P + j) * P + k;
+  // The radius graph: up[i] = the points j > i within the edge bound,
+  // ascending. A kept simplex is a clique of it, so the simplices are
+  // enumerated as cliques (i < j < k < l, in lexicographic order) from the
+  // common neighbours of their first two corners, and the work grows with
+  // the simplices within the bound rather than with C(P, 4).
+  // With max_edge_neighbours = k, an edge also needs one of its points
+  // among the other's k nearest (the union of the k-nearest-neighbour
+  // graphs): near2[i] = squared distance to i's k-th nearest point.
+  std::vector<double> near2(P, kInf);
+  const int k_near = options.max_edge_neighbours;
+  if (k_near > 0 && k_near < P - 1) {
+    std::vector<double> row(P);
+    for (int i = 0; i < P; ++i) {
+      for (int j = 0; j < P; ++j) row[j] = d2(i, j);
+      // row[i] = 0 is the smallest: the k-th nearest other point is at k.
+      std::nth_element(row.begin(), row.begin() + k_near, row.end());
+      near2[i] = row[k_near];
+    }
+  }
+  auto joined = [&](int i, int j) {
+    return d2(i, j) <= max_edge2 && (d2(i, j) <= near2[i] || d2(i, j) <= near2[j]);
   };
-
+  std::vector<std::vector<uint16_t>> up(P);
   for (int i = 0; i < P; ++i) {
     for (int j = i + 1; j < P; ++j) {
-      if (d2(i, j) > max_edge2) continue;
-      for (int k = j + 1; k < P; ++k) {
-        if (d2(i, k) > max_edge2 || d2(j, k) > max_edge2) continue;
-        for (int l = k + 1; l < P; ++l) {
-          if (d2(i, l) > max_edge2 || d2(j, l) > max_edge2 ||
-              d2(k, l) > max_edge2) {
-            continue;
-          }
+      if (joined(i, j)) up[i].push_back(static_cast<uint16_t>(j));
+    }
+  }
+  std::vector<uint16_t> common;  // up[i] ∩ up[j]: the k that close (i, j)
+  auto intersect = [&](int i, int j) {
+    common.clear();
+    std::set_intersection(up[i].begin(), up[i].end(), up[j].begin(), up[j].end(),
+                          std::back_inserter(common));
+  };
+  // The triangles that are faces of kept tetrahedra (sorted keys): only the
+  // others are kept, so they add coverage without duplicating.
+  auto tri_key = [P](int i, int j, int k) {
+    return (static_cast<uint64_t>(i) * P + j) * P + k;
+  };
+  std::vector<uint64_t> covered_triangle;
+  for (int i = 0; i < P; ++i) {
+    for (const int j : up[i]) {
+      intersect(i, j);
+      for (size_t a = 0; a < common.size(); ++a) {
+        const int k = common[a];
+        for (size_t b = a + 1; b < common.size(); ++b) {
+          const int l = common[b];
+          if (!joined(k, l)) continue;
           const double q = TetQuality(x(i), x(j), x(k), x(l));
           if (q < options.min_tet_quality || q == 0.0) continue;
           CloudSimplex s;
@@ -336,47 +367,45 @@ BundleIndex BundleIndex::Build(const MatX3d& points,
                       static_cast<uint16_t>(k), static_cast<uint16_t>(l)};
           s.size = 4;
           index.simplices_.push_back(s);
-          covered_triangle[tri_key(i, j, k)] = 1;
-          covered_triangle[tri_key(i, j, l)] = 1;
-          covered_triangle[tri_key(i, k, l)] = 1;
-          covered_triangle[tri_key(j, k, l)] = 1;
+          covered_triangle.insert(covered_triangle.end(),
+                                  {tri_key(i, j, k), tri_key(i, j, l),
+                                   tri_key(i, k, l), tri_key(j, k, l)});
         }
       }
     }
   }
+  std::sort(covered_triangle.begin(), covered_triangle.end());
+  covered_triangle.erase(std::unique(covered_triangle.begin(), covered_triangle.end()),
+                         covered_triangle.end());
   index.num_tets_ = static_cast<int64_t>(index.simplices_.size());
+  // Which edges are sides of kept triangles or tetrahedra.
+  std::vector<uint8_t> covered_edge(static_cast<size_t>(P) * P, 0);
+  auto edge_key = [P](int i, int j) { return static_cast<size_t>(i) * P + j; };
   int64_t triangles = 0, edges = 0;
   for (int i = 0; i < P; ++i) {
-    for (int j = i + 1; j < P; ++j) {
-      for (int k = j + 1; k < P; ++k) {
-        if (covered_triangle[tri_key(i, j, k)]) {
-          covered_edge[i * P + j] = covered_edge[i * P + k] =
-              covered_edge[j * P + k] = 1;
-          continue;
+    for (const int j : up[i]) {
+      intersect(i, j);
+      for (const int k : common) {
+        const bool covered = std::binary_search(
+            covered_triangle.begin(), covered_triangle.end(), tri_key(i, j, k));
+        if (!covered) {
+          const double q = TriangleQuality(x(i), x(j), x(k));
+          if (q < options.min_triangle_quality || q == 0.0) continue;
+          CloudSimplex s;
+          s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j),
+                      static_cast<uint16_t>(k), 0};
+          s.size = 3;
+          index.simplices_.push_back(s);
+          ++triangles;
         }
-        if (d2(i, j) > max_edge2 || d2(i, k) > max_edge2 ||
-            d2(j, k) > max_edge2) {
-          continue;
-        }
-        const double q = TriangleQuality(x(i), x(j), x(k));
-        if (q < options.min_triangle_quality || q == 0.0) continue;
-        CloudSimplex s;
-        s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j),
-                    static_cast<uint16_t>(k), 0};
-        s.size = 3;
-        index.simplices_.push_back(s);
-        ++triangles;
-        covered_edge[i * P + j] = covered_edge[i * P + k] =
-            covered_edge[j * P + k] = 1;
+        covered_edge[edge_key(i, j)] = covered_edge[edge_key(i, k)] =
+            covered_edge[edge_key(j, k)] = 1;
       }
     }
   }
   for (int i = 0; i < P; ++i) {
-    for (int j = i + 1; j < P; ++j) {
-      if (covered_edge[i * P + j]) {
-        continue;
-      }
-      if (d2(i, j) > max_edge2 || d2(i, j) == 0.0) continue;
+    for (const int j : up[i]) {
+      if (covered_edge[edge_key(i, j)] || d2(i, j) == 0.0) continue;
       CloudSimplex s;
       s.corner = {static_cast<uint16_t>(i), static_cast<uint16_t>(j), 0, 0};
       s.size = 2;

@@ -259,6 +259,125 @@ TEST(BundleIndex, PruningRespectsQualityAndExtent) {
   EXPECT_LT(index.stats().tets_kept, unpruned.stats().tets_kept);
 }
 
+// The kept simplices are exactly those the index's definition gives when
+// every 4-, 3- and 2-subset of the cloud is tested (docs/method.md,
+// "Tetrahedralization"), in the same order: tetrahedra, then triangles that
+// are not faces of kept tetrahedra, then edges that are not sides of either,
+// then the points; within each, corners ascending, lexicographic. Under the
+// edge bound alone and with the nearest-neighbour bound.
+TEST(BundleIndex, SimplicesEqualTheBruteForceDefinition) {
+  for (int seed : {1, 2, 3}) {
+    for (int points : {9, 24, 40}) {
+      for (int k_near : {0, 3, 8}) {
+        IndexOptions options;
+        options.min_tet_quality = 0.1;
+        options.min_triangle_quality = 0.1;
+        options.max_edge_mm = 9.0;
+        options.max_edge_neighbours = k_near;
+        const BundleIndex index = RandomIndex(seed, points, options);
+        const MatX3d& x = index.points();
+        const int P = index.NumPoints();
+        auto d = [&](int i, int j) { return (x.row(i) - x.row(j)).norm(); };
+        auto kth = [&](int i) {  // distance to i's k-th nearest other point
+          std::vector<double> r;
+          for (int j = 0; j < P; ++j) {
+            if (j != i) r.push_back(d(i, j));
+          }
+          std::sort(r.begin(), r.end());
+          return k_near > 0 && k_near <= static_cast<int>(r.size()) ? r[k_near - 1] : 1e300;
+        };
+        std::vector<double> near(P);
+        for (int i = 0; i < P; ++i) near[i] = kth(i);
+        auto edge_ok = [&](int i, int j) {
+          return d(i, j) <= 9.0 && (d(i, j) <= near[i] || d(i, j) <= near[j]);
+        };
+        auto p = [&](int i) -> Vec3 { return x.row(i).transpose(); };
+        std::vector<std::vector<int>> expected;
+        std::set<std::vector<int>> faces, sides;
+        for (int i = 0; i < P; ++i)
+          for (int j = i + 1; j < P; ++j)
+            for (int k = j + 1; k < P; ++k)
+              for (int l = k + 1; l < P; ++l) {
+                if (!(edge_ok(i, j) && edge_ok(i, k) && edge_ok(i, l) && edge_ok(j, k) &&
+                      edge_ok(j, l) && edge_ok(k, l))) {
+                  continue;
+                }
+                const double q = TetQuality(p(i), p(j), p(k), p(l));
+                if (q < 0.1 || q == 0.0) continue;
+                expected.push_back({i, j, k, l});
+                faces.insert({{i, j, k}, {i, j, l}, {i, k, l}, {j, k, l}});
+              }
+        for (int i = 0; i < P; ++i)
+          for (int j = i + 1; j < P; ++j)
+            for (int k = j + 1; k < P; ++k) {
+              if (!(edge_ok(i, j) && edge_ok(i, k) && edge_ok(j, k))) continue;
+              const bool face = faces.count({i, j, k}) > 0;
+              if (!face) {
+                const double q = TriangleQuality(p(i), p(j), p(k));
+                if (q < 0.1 || q == 0.0) continue;
+                expected.push_back({i, j, k});
+              }
+              sides.insert({{i, j}, {i, k}, {j, k}});
+            }
+        for (int i = 0; i < P; ++i)
+          for (int j = i + 1; j < P; ++j) {
+            if (edge_ok(i, j) && !sides.count({i, j}) && d(i, j) > 0) expected.push_back({i, j});
+          }
+        for (int i = 0; i < P; ++i) expected.push_back({i});
+        std::vector<std::vector<int>> kept;
+        for (const CloudSimplex& s : index.simplices()) {
+          kept.emplace_back(s.corner.begin(), s.corner.begin() + s.size);
+        }
+        EXPECT_EQ(kept, expected) << "seed " << seed << ", " << points << " points, k " << k_near;
+        if (k_near == 0 && points == 40) {
+          EXPECT_GT(index.stats().tets_kept, 0) << seed << " " << points;
+        }
+      }
+    }
+  }
+}
+
+// The nearest-neighbour bound keeps the tetrahedra of a dense cloud to a
+// multiple of its points (the edge bound alone keeps ~5,000 per point on
+// these clouds) and still covers the volume the unbounded ones cover: with
+// k = 24 nearly every position inside one of those is inside one of these
+// (the positions are drawn uniformly in randomly drawn unbounded ones).
+bool InSomeTet(const BundleIndex& index, const Vec3& p, const IndexOptions& options) {
+  for (const IndexCandidate& c : index.Query(p, 0.0, options).candidates) {
+    if (index.simplices()[c.simplex].size == 4) return true;
+  }
+  return false;
+}
+
+TEST(BundleIndex, NeighbourBoundKeepsDenseCloudsSmallAndCovered) {
+  constexpr int kPoints = 150;
+  for (int seed : {4, 5}) {
+    IndexOptions options;
+    options.min_tet_quality = 0.1;
+    options.max_edge_mm = 8.0;
+    const BundleIndex all = RandomIndex(seed, kPoints, options);
+    options.max_edge_neighbours = 24;
+    const BundleIndex bounded = RandomIndex(seed, kPoints, options);
+    EXPECT_LT(bounded.stats().tets_kept, 200 * kPoints);
+    EXPECT_LT(bounded.stats().tets_kept * 20, all.stats().tets_kept);
+    // Positions inside randomly drawn unbounded tetrahedra.
+    std::mt19937 rng(seed + 100);
+    std::uniform_int_distribution<int64_t> pick(0, all.stats().tets_kept - 1);
+    std::exponential_distribution<double> e(1.0);
+    const int in_all = 2000;
+    int in_bounded = 0;
+    for (int t = 0; t < in_all; ++t) {
+      const SimplexCorners c = all.Corners(static_cast<int>(pick(rng)));
+      double w[4], sum = 0;
+      for (double& wi : w) sum += (wi = e(rng));  // uniform on the simplex
+      Vec3 p = Vec3::Zero();
+      for (int i = 0; i < 4; ++i) p += w[i] / sum * c.x[i];
+      in_bounded += InSomeTet(bounded, p, options);
+    }
+    EXPECT_GE(in_bounded, 0.98 * in_all) << in_bounded << " of " << in_all;
+  }
+}
+
 TEST(BundleIndex, WriteReadRoundTrip) {
   IndexOptions options = MechanicsOptions();
   const BundleIndex index = RandomIndex(5, 9, options);

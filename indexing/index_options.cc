@@ -18,6 +18,9 @@ void IndexOptions::Register(OptionFields* fields) {
               "triangles thinner than this quality are pruned (0..1)");
   fields->Add("max_edge_mm", &max_edge_mm,
               "simplices with a longer edge are pruned (mm; 0 = no bound)");
+  fields->Add("max_edge_neighbours", &max_edge_neighbours,
+              "an edge must join a point to one of its this many nearest "
+              "cloud points (0 = no bound; bounds the index of dense clouds)");
   fields->Add("grid_max_cells", &grid_max_cells,
               "grid cells along the longest side of a cloud's box");
   fields->Add("grid_entries_per_element", &grid_entries_per_element,
@@ -37,6 +40,7 @@ bool IndexOptions::Check() const {
   CHECK_OPTION_GE(min_triangle_quality, 0.0);
   CHECK_OPTION_LT(min_triangle_quality, 1.0);
   CHECK_OPTION_GE(max_edge_mm, 0.0);
+  CHECK_OPTION_IN(max_edge_neighbours, 0, 1000);
   CHECK_OPTION_IN(grid_max_cells, 1, 256);
   CHECK_OPTION_GE(grid_entries_per_element, 1.0);
   CHECK_OPTION_GE(inside_tolerance, 0.0);

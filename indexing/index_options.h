@@ -22,6 +22,12 @@ struct IndexOptions {
                                        // clouds (4 area / sqrt(3) edge^2)
   double max_edge_mm = 6.0;  // simplices with a longer edge are pruned as too
                              // large an extent (mm; 0 = no bound)
+  int max_edge_neighbours = 0;  // an edge must also join one of its points
+                                // to one of its this many nearest cloud
+                                // points: in dense clouds the bound shrinks
+                                // to the local spacing, so the simplices
+                                // grow with the points, not as their 4th
+                                // power (0 = no such bound)
   // Grid (step 3).
   int grid_max_cells = 24;  // cells along the longest side of a cloud's box
   double grid_entries_per_element = 8.0;  // memory bound: the grid is made

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -28,6 +29,10 @@ void SynthActorOptions::Register(OptionFields* fields) {
   fields->Add("dataset_inbetweens", &dataset_inbetweens,
               "add in-between shapes (50%, some 25/75%)");
   fields->Add("dataset_combos", &dataset_combos, "add the combination shapes");
+  fields->Add("shapes", &shapes,
+              "dataset size: 0 = the standard plan; more extends it with "
+              "seeded in-betweens and pairwise and triple combinations of "
+              "units that share a region (at least the standard plan's size)");
   fields->Add("rig", &rig,
               "generator: the nonlinear generator with its jaw rig; linear: "
               "each unit's extreme as a fixed displacement, summed (no "
@@ -66,6 +71,9 @@ std::vector<std::string> SplitNames(const std::string& text) {
 // At most this many units may be held out: enough for hard material, and
 // the dataset keeps most of the face's motion.
 constexpr int kMaxHoldout = 24;
+// A bound against typos, not a recommendation: 10,000 shapes of the default
+// 51,200-vertex mesh hold 12 GB of displacements.
+constexpr int kMaxShapes = 10000;
 
 }  // namespace
 
@@ -85,6 +93,9 @@ bool SynthActorOptions::Check() const {
     fail("marker_jitter_mm must be in [0, 3]");
   }
   if (name.empty()) fail("name must not be empty");
+  if (shapes < 0 || shapes > kMaxShapes) {
+    fail(fmt::format("shapes must be in [0, {}]", kMaxShapes));
+  }
   if (rig != "generator" && rig != "linear") {
     fail("rig must be generator or linear, not '" + rig + "'");
   }
@@ -321,7 +332,72 @@ std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
       add(name, a);
     }
   }
+  if (options.shapes > 0) {
+    if (options.shapes < static_cast<int>(plan.size())) {
+      throw InputError(fmt::format(
+          "shapes {} is below the standard plan's {} shapes (extremes, "
+          "in-betweens and combinations); use 0 for the standard plan or turn "
+          "dataset_inbetweens / dataset_combos off",
+          options.shapes, plan.size()));
+    }
+    ExtendDataset(model, held, options.seed, options.shapes, &plan);
+  }
   return plan;
+}
+
+void ExtendDataset(const FaceModel& model, const std::vector<int>& held, int seed,
+                   int count, std::vector<DatasetEntry>* plan) {
+  const int num_units = model.NumUnits();
+  std::vector<int> pool;  // the units that may be drawn
+  for (int k = 0; k < num_units; ++k) {
+    if (!std::binary_search(held.begin(), held.end(), k)) pool.push_back(k);
+  }
+  HMC_CHECK(!pool.empty());
+  auto share_tag = [&](int a, int b) {
+    for (const std::string& tag : model.units()[a].tags) {
+      const auto& other = model.units()[b].tags;
+      if (std::find(other.begin(), other.end(), tag) != other.end()) return true;
+    }
+    return false;
+  };
+  std::set<std::string> names;
+  for (const DatasetEntry& e : *plan) names.insert(e.name);
+  SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(seed), 11);
+  // Every draw has at least one candidate (the single-unit kind), and the
+  // levels give each unit 17 single entries, so the loop ends unless the
+  // plan asks for more entries than the units can form: bounded draws.
+  const int64_t max_draws = 1000 * static_cast<int64_t>(count) + 100000;
+  for (int64_t draw = 0; static_cast<int>(plan->size()) < count; ++draw) {
+    HMC_CHECK_MSG(draw < max_draws, "ExtendDataset: too few distinct entries");
+    // 1, 2 or 3 units, in the proportions 1 : 2 : 2.
+    const double kind = rng.Uniform();
+    const int want = kind < 0.2 ? 1 : kind < 0.6 ? 2 : 3;
+    std::vector<int> units = {pool[rng.Index(static_cast<int>(pool.size()))]};
+    while (static_cast<int>(units.size()) < want) {
+      std::vector<int> near;  // shares a region with a unit already drawn
+      for (int k : pool) {
+        if (std::find(units.begin(), units.end(), k) != units.end()) continue;
+        if (std::any_of(units.begin(), units.end(),
+                        [&](int u) { return share_tag(u, k); })) {
+          near.push_back(k);
+        }
+      }
+      if (near.empty()) break;
+      units.push_back(near[rng.Index(static_cast<int>(near.size()))]);
+    }
+    std::sort(units.begin(), units.end());
+    Eigen::VectorXd a = model.ZeroActivations();
+    std::string name;
+    for (int k : units) {
+      const int percent = 20 + 5 * rng.Index(17);  // 20, 25, ..., 100
+      a[k] = percent / 100.0;
+      if (!name.empty()) name += "__";
+      name += fmt::format("{}_{:03d}", model.units()[k].name, percent);
+    }
+    if (!names.insert(name).second) continue;  // already in the plan
+    std::vector<std::string> tags = UnionTags(model, a);
+    plan->push_back({std::move(name), std::move(a), std::move(tags)});
+  }
 }
 
 Actor SynthesizeActorFromModel(const FaceModel& model,

@@ -28,6 +28,7 @@ struct SynthActorOptions {
   double marker_jitter_mm = 0.8;    // std of the seeded marker placement jitter (mm)
   bool dataset_inbetweens = true;   // add 50% (and some 25/75%) in-between shapes
   bool dataset_combos = true;       // add the combination shapes
+  int shapes = 0;  // dataset size: 0 = the standard plan; more extends it with seeded in-betweens, pairwise and triple combinations (docs/synthetic.md, "Larger datasets")
   std::string rig = "generator";  // "generator" (nonlinear detail, jaw rig) or "linear" (extremes as fixed displacements, no jaw rig)
   int holdout = 0;                  // action units held out of the dataset (drawn from the seed, never a jaw unit)
   std::string holdout_units;        // comma-separated unit names held out (overrides the draw; synth.yaml records the resolved list)
@@ -71,9 +72,24 @@ std::vector<int> UnitsNotInDataset(const FaceModel& model,
 
 // The dataset: every unit at 100% (and, if enabled, in-betweens and
 // combinations), in a fixed order, without every entry that activates a
-// held-out unit (extremes, in-betweens and combinations alike).
+// held-out unit (extremes, in-betweens and combinations alike). With
+// options.shapes > 0 the plan is extended to exactly that many entries by
+// ExtendDataset; a plan of N shapes is the first N entries of every larger
+// one of the same seed. Throws InputError when options.shapes is below the
+// standard plan's size.
 std::vector<DatasetEntry> PlanDataset(const FaceModel& model,
                                       const SynthActorOptions& options);
+
+// Appends seeded entries to `plan` until it holds `count`: single units at
+// in-between levels, and pairs and triples of units that share a region tag
+// (a combination of units that move disjoint regions is, at every marker,
+// one of its single-unit shapes, so it would add no point to any bundle's
+// cloud). Levels are multiples of 0.05 in [0.2, 1]; no entry repeats one
+// already in the plan; `held` units are never drawn. Deterministic by
+// `seed` (its own random stream), in a fixed order, so a longer extension
+// starts with every entry of a shorter one.
+void ExtendDataset(const FaceModel& model, const std::vector<int>& held, int seed,
+                   int count, std::vector<DatasetEntry>* plan);
 
 // Builds the actor from an already built model (what SynthesizeActor does).
 Actor SynthesizeActorFromModel(const FaceModel& model,

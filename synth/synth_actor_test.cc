@@ -1,6 +1,7 @@
 #include "synth/synth_actor.h"
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <set>
 
@@ -259,6 +260,71 @@ TEST(SynthActorTest, HoldoutRemovesExactlyTheShapesUsingHeldOutUnits) {
   }
   // Different seeds hold out different units.
   EXPECT_GT(drawn.size(), 1u);
+}
+
+// --shapes N: exactly N entries, the standard plan first, every smaller
+// size a prefix of a larger one, no repeats, no held-out unit, and every
+// combination of units that share a region (so it adds points to a cloud).
+TEST(SynthActorTest, LargerDatasetsExtendTheStandardPlan) {
+  for (int seed : {1, 2, 5}) {
+    SynthActorOptions options = Small(seed);
+    options.holdout = 2;
+    const FaceModel model(options);
+    const std::vector<int> held = HeldOutUnits(model, options);
+    const std::vector<DatasetEntry> standard = PlanDataset(model, options);
+    const std::vector<std::string> standard_names = Names(standard);
+    std::vector<std::string> previous;
+    for (int shapes : {static_cast<int>(standard.size()), 250, 600}) {
+      options.shapes = shapes;
+      ASSERT_TRUE(options.Check());
+      const std::vector<DatasetEntry> plan = PlanDataset(model, options);
+      ASSERT_EQ(plan.size(), static_cast<size_t>(shapes));
+      const std::vector<std::string> names = Names(plan);
+      EXPECT_TRUE(std::equal(previous.begin(), previous.end(), names.begin()));
+      EXPECT_TRUE(std::equal(standard_names.begin(), standard_names.end(), names.begin()));
+      EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
+      std::set<std::vector<double>> activations;
+      std::array<int, 4> kinds = {0, 0, 0, 0};
+      for (size_t n = 0; n < plan.size(); ++n) {
+        const Eigen::VectorXd& a = plan[n].activations;
+        EXPECT_TRUE(activations.insert({a.data(), a.data() + a.size()}).second) << plan[n].name;
+        EXPECT_FALSE(UsesAny(plan[n], held)) << plan[n].name;
+        if (n < standard.size()) continue;
+        std::vector<int> used;
+        for (int k = 0; k < a.size(); ++k) {
+          if (a[k] == 0) continue;
+          used.push_back(k);
+          EXPECT_GE(a[k], 0.2 - 1e-12);
+          EXPECT_LE(a[k], 1.0);
+        }
+        ASSERT_GE(used.size(), 1u);
+        ASSERT_LE(used.size(), 3u);
+        ++kinds[used.size()];
+        // Each unit shares a region tag with another one of the entry.
+        for (int u : used) {
+          if (used.size() == 1) break;
+          bool shares = false;
+          for (int v : used) {
+            if (v == u) continue;
+            for (const std::string& tag : model.units()[u].tags) {
+              const auto& t = model.units()[v].tags;
+              shares = shares || std::find(t.begin(), t.end(), tag) != t.end();
+            }
+          }
+          EXPECT_TRUE(shares) << plan[n].name;
+        }
+      }
+      if (shapes == 600) {
+        for (int k = 1; k <= 3; ++k) EXPECT_GT(kinds[k], 50) << k << " units";
+      }
+      previous = names;
+    }
+    options.shapes = static_cast<int>(standard.size()) - 1;
+    EXPECT_THROW(PlanDataset(model, options), InputError);
+  }
+  SynthActorOptions bad = Small();
+  bad.shapes = -1;
+  EXPECT_FALSE(bad.Check());
 }
 
 TEST(SynthActorTest, NamedHoldoutUnitsAndTheirErrors) {
