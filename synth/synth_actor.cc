@@ -363,9 +363,10 @@ void ExtendDataset(const FaceModel& model, const std::vector<int>& held, int see
   std::set<std::string> names;
   for (const DatasetEntry& e : *plan) names.insert(e.name);
   SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(seed), 11);
-  // Every draw has at least one candidate (the single-unit kind), and the
-  // levels give each unit 17 single entries, so the loop ends unless the
-  // plan asks for more entries than the units can form: bounded draws.
+  // A draw that repeats an entry is drawn again. The units' pairs and
+  // triples at 17 levels each form far more distinct entries than
+  // kMaxShapes, so the loop ends; the bound turns an impossible request
+  // into a loud failure instead of a hang.
   const int64_t max_draws = 1000 * static_cast<int64_t>(count) + 100000;
   for (int64_t draw = 0; static_cast<int>(plan->size()) < count; ++draw) {
     HMC_CHECK_MSG(draw < max_draws, "ExtendDataset: too few distinct entries");
