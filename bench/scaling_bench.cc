@@ -15,7 +15,13 @@
 //                             random face vertices near the existing ones.
 //   BM_Vertices/<method>/<V>: grid_u x grid_v of the synthetic face.
 //   BM_Threads/<method>/<T>:  the default actor with T threads (ThreadLimit).
-// method: 0 = lgi, 1 = blendshape. Default options (indexing/index_options.h:
+//   BM_DatasetSize/<method>/<N>: N generator shapes (`hmc actor synth
+//                             --shapes N`, 0 = the standard 108) on a
+//                             7,680-vertex actor, index with
+//                             max_edge_neighbours 24 (issue 25).
+// Counters setup_s: the setup's wall time (actor, frames; once per
+// configuration); prepare_s: the method's first Prepare (lgi: the index).
+// method: 0 = lgi, 1 = blendshape, 2 = robust (the default). Default options (indexing/index_options.h:
 // the tetrahedra kept grow as the fourth power of the cloud size unless
 // pruned by min_tet_quality / max_edge_mm). Setup (actor, index) is cached across
 // iterations and benchmarks; counter peak_rss_mb = getrusage maxrss of the
@@ -24,6 +30,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <map>
 #include <memory>
 #include <random>
@@ -48,15 +55,22 @@ struct Setup {
   std::unique_ptr<MethodSolvers> solvers;
   std::vector<BundleFrame> frames;
   std::vector<JawPose> jaw;
+  double setup_s = 0;  // MakeSetup: the actor and the frames
+  // Per method, the first Prepare (lgi: the index; robust after lgi: its
+  // own precomputation only).
+  std::map<std::string, double> prepare_s;
 };
 
 // Grid and size of a sweep; shapes/bundles < 0: as synthesised.
 struct Config {
   int grid_u = 256, grid_v = 200;
   int shapes = -1, bundles = -1;
+  int generator_shapes = 0;     // SynthActorOptions::shapes
+  int max_edge_neighbours = 0;  // IndexOptions::max_edge_neighbours
   bool operator<(const Config& o) const {
-    return std::tie(grid_u, grid_v, shapes, bundles) <
-           std::tie(o.grid_u, o.grid_v, o.shapes, o.bundles);
+    return std::tie(grid_u, grid_v, shapes, bundles, generator_shapes, max_edge_neighbours) <
+           std::tie(o.grid_u, o.grid_v, o.shapes, o.bundles, o.generator_shapes,
+                    o.max_edge_neighbours);
   }
 };
 
@@ -64,6 +78,7 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
   SynthActorOptions so;
   so.grid_u = c.grid_u;
   so.grid_v = c.grid_v;
+  so.shapes = c.generator_shapes;
   const FaceModel model(so);
   auto s = std::make_unique<Setup>();
   s->actor = SynthesizeActorFromModel(model, so);
@@ -109,7 +124,8 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
     }
     actor.markers = markers;
   }
-  const MethodOptions options;
+  MethodOptions options;
+  options.build.index.max_edge_neighbours = c.max_edge_neighbours;
   s->solvers = std::make_unique<MethodSolvers>(actor, options, IndexCacheWrite::kNone);
   // Held-out random combinations of the (unmodified) generator, bundles on
   // the chosen markers.
@@ -127,14 +143,28 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
 Setup& GetSetup(const Config& c) {
   static std::map<Config, std::unique_ptr<Setup>> cache;
   auto it = cache.find(c);
-  if (it == cache.end()) it = cache.emplace(c, MakeSetup(c)).first;
+  if (it == cache.end()) {
+    const auto start = std::chrono::steady_clock::now();
+    std::unique_ptr<Setup> setup = MakeSetup(c);
+    setup->setup_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    it = cache.emplace(c, std::move(setup)).first;
+  }
   return *it->second;
 }
 
-const char* MethodName(int64_t m) { return m == 0 ? "lgi" : "blendshape"; }
+const char* MethodName(int64_t m) {
+  return m == 0 ? "lgi" : m == 1 ? "blendshape" : "robust";
+}
 
 void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
-  s.solvers->Prepare(method);
+  // Google Benchmark calls this more than once; the first Prepare builds.
+  if (!s.prepare_s.count(method)) {
+    const auto start = std::chrono::steady_clock::now();
+    s.solvers->Prepare(method);
+    s.prepare_s[method] =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   size_t f = 0;
   for (auto _ : state) {
     const SolveResult r =
@@ -147,6 +177,8 @@ void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
   state.counters["shapes"] = static_cast<double>(s.actor.shapes.size());
   state.counters["bundles"] = static_cast<double>(s.actor.markers.size());
   state.counters["peak_rss_mb"] = PeakRssMb();
+  state.counters["setup_s"] = s.setup_s;
+  state.counters["prepare_s"] = s.prepare_s[method];
 }
 
 void BM_Shapes(benchmark::State& state) {
@@ -174,6 +206,15 @@ void BM_Vertices(benchmark::State& state) {
   SolveFrames(state, GetSetup(c), MethodName(state.range(0)));
 }
 
+void BM_DatasetSize(benchmark::State& state) {
+  Config c;
+  c.grid_u = 96;
+  c.grid_v = 80;
+  c.generator_shapes = static_cast<int>(state.range(1));
+  c.max_edge_neighbours = 24;
+  SolveFrames(state, GetSetup(c), MethodName(state.range(0)));
+}
+
 void BM_Threads(benchmark::State& state) {
   const ThreadLimit limit(static_cast<int>(state.range(1)));
   SolveFrames(state, GetSetup(Config()), MethodName(state.range(0)));
@@ -196,6 +237,10 @@ BENCHMARK(BM_Bundles)
     ->UseRealTime();
 BENCHMARK(BM_Vertices)
     ->ArgsProduct({{0, 1}, {10000, 51200, 204800}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_DatasetSize)
+    ->ArgsProduct({{0, 2}, {0, 250, 500, 1000}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_Threads)
