@@ -30,13 +30,13 @@
 
 #include <benchmark/benchmark.h>
 
-#include <chrono>
 #include <map>
 #include <memory>
 #include <random>
 #include <tuple>
 
 #include "blending/solve_method.h"
+#include "core/logging.h"
 #include "core/parallel.h"
 #include "synth/synth_actor.h"
 #include "synth/truth_frames.h"
@@ -144,10 +144,9 @@ Setup& GetSetup(const Config& c) {
   static std::map<Config, std::unique_ptr<Setup>> cache;
   auto it = cache.find(c);
   if (it == cache.end()) {
-    const auto start = std::chrono::steady_clock::now();
+    const StageTimer timer("bench setup");
     std::unique_ptr<Setup> setup = MakeSetup(c);
-    setup->setup_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    setup->setup_s = timer.ElapsedSeconds();
     it = cache.emplace(c, std::move(setup)).first;
   }
   return *it->second;
@@ -160,10 +159,9 @@ const char* MethodName(int64_t m) {
 void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
   // Google Benchmark calls this more than once; the first Prepare builds.
   if (!s.prepare_s.count(method)) {
-    const auto start = std::chrono::steady_clock::now();
+    const StageTimer timer("prepare " + method);
     s.solvers->Prepare(method);
-    s.prepare_s[method] =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    s.prepare_s[method] = timer.ElapsedSeconds();
   }
   size_t f = 0;
   for (auto _ : state) {

@@ -360,8 +360,13 @@ void ExtendDataset(const FaceModel& model, const std::vector<int>& held, int see
     }
     return false;
   };
-  std::set<std::string> names;
-  for (const DatasetEntry& e : *plan) names.insert(e.name);
+  // Entries are told apart by their activations: a drawn pair can equal a
+  // named combination of the standard plan (combo_smile).
+  auto key = [](const Eigen::VectorXd& a) {
+    return std::vector<double>(a.data(), a.data() + a.size());
+  };
+  std::set<std::vector<double>> planned;
+  for (const DatasetEntry& e : *plan) planned.insert(key(e.activations));
   SynthRandom rng = SynthRandom::Stream(static_cast<uint64_t>(seed), 11);
   // A draw that repeats an entry is drawn again. The units' pairs and
   // triples at 17 levels each form far more distinct entries than
@@ -395,7 +400,7 @@ void ExtendDataset(const FaceModel& model, const std::vector<int>& held, int see
       if (!name.empty()) name += "__";
       name += fmt::format("{}_{:03d}", model.units()[k].name, percent);
     }
-    if (!names.insert(name).second) continue;  // already in the plan
+    if (!planned.insert(key(a)).second) continue;  // already in the plan
     std::vector<std::string> tags = UnionTags(model, a);
     plan->push_back({std::move(name), std::move(a), std::move(tags)});
   }
