@@ -68,6 +68,7 @@ LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
   alt_point_.resize(K);
   alt_shape_.resize(K);
   alt_disp_.resize(K);
+  alt_site_.resize(K);
   ParallelFor(0, K, [&](int64_t k) {
     for (int j : nn.site_neighbours[k]) {
       if (j != k) neighbours_[k].push_back(j);
@@ -95,9 +96,11 @@ LgiSolver::LgiSolver(const TriMesh& neutral, const ShapeData& data,
     }
     const int A = static_cast<int>(alt_point_[k].size());
     alt_disp_[k] = Eigen::MatrixXd::Zero(A, 3 * J);
+    alt_site_[k].assign(A, data.site_neutral.row(k).transpose());
     for (int a = 0; a < A; ++a) {
       const int r = alt_shape_[k][a];
       if (r < 0) continue;
+      alt_site_[k][a] += data.SiteDisplacement(r, static_cast<int>(k));
       for (int jj = 0; jj < J; ++jj) {
         alt_disp_[k].block<1, 3>(a, 3 * jj) =
             data.SiteDisplacement(r, neighbours_[k][jj]).transpose();
@@ -193,7 +196,8 @@ double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
                                  const std::vector<char>& observed,
                                  const std::vector<Vec3>& unskinned,
                                  std::vector<double>* costs,
-                                 std::vector<int>* representatives) const {
+                                 std::vector<int>* representatives,
+                                 std::vector<std::vector<int>>* tied) const {
   const BundleIndex& b = index_.bundles[k];
   // Neighbour criterion sum_j |x0(s_j) + sum_i w_i D_i(s_j) - p*_j|^2 as
   // c + 2 w.g + w' G w over the candidate's corners (G precomputed; a
@@ -227,6 +231,8 @@ double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
   std::vector<int>& rep = *representatives;
   cost.assign(q.candidates.size(), 0.0);
   rep.assign(q.candidates.size(), kNoRepresentative);
+  tied->assign(q.candidates.size(), {});
+  std::vector<std::pair<int, double>> alternatives;  // shape, cost
   double best = std::numeric_limits<double>::infinity();
   for (size_t ci = 0; ci < q.candidates.size(); ++ci) {
     const IndexCandidate& cand = q.candidates[ci];
@@ -241,13 +247,21 @@ double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
       }
     }
     e = std::max(e, 0.0);
+    // The candidate's own miss: its squared distance from the bundle.
+    double own = cand.distance * cand.distance;
     // On one cloud point: any shape the point stands for may be the one
-    // observed (verification of a merged or pruned shape depends on it).
+    // observed (verification of a merged or pruned shape depends on it),
+    // scored by the neighbours and by its own surface point, which lies up
+    // to the merge or pruning threshold from the cloud point: a shape
+    // pruned into the neutral that moves the bundle and not its neighbours
+    // ties with the neutral on the neighbours alone.
     int on_point = -1;
     for (int i = 0; i < s.size; ++i) {
       if (cand.weights[i] >= 1.0 - 1e-9) on_point = s.corner[i];
     }
+    alternatives.clear();
     if (on_point >= 0) {
+      alternatives.emplace_back(kNoRepresentative, e + own);
       for (size_t ai = 0; ai < alt_point_[k].size(); ++ai) {
         if (alt_point_[k][ai] != on_point) continue;
         double ea = 0;
@@ -257,13 +271,21 @@ double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
                  alt_disp_[k].block<1, 3>(ai, 3 * jj).transpose())
                     .squaredNorm();
         }
-        if (ea < e - options_.tie_mm2) {
+        const double own_a = (alt_site_[k][ai] - unskinned[k]).squaredNorm();
+        alternatives.emplace_back(alt_shape_[k][ai], ea + own_a);
+        if (ea + own_a < e + own - options_.tie_mm2) {
           e = ea;
+          own = own_a;
           rep[ci] = alt_shape_[k][ai];
         }
       }
     }
-    e += cand.distance * cand.distance;
+    e += own;
+    for (const auto& [shape, cost_a] : alternatives) {
+      if (shape != rep[ci] && cost_a <= e + options_.tie_mm2) {
+        (*tied)[ci].push_back(shape);
+      }
+    }
     cost[ci] = e;
     best = std::min(best, e);
   }
@@ -342,6 +364,7 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
     BundleSolve first_blend, probe;
     Assign(static_cast<int>(k), tie.candidates[k][0], 0.0, &first_blend, tie.representative[k][0]);
     for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+      if (!tie.primary[k][t]) continue;
       Assign(static_cast<int>(k), tie.candidates[k][t], 0.0, &probe, tie.representative[k][t]);
       if (!same_blend(probe.weights, first_blend.weights)) {
         tied[k] = 1;
@@ -350,6 +373,11 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
     }
   });
   std::vector<double> consensus(data_.num_shapes + 1, 0.0);  // [shape + 1]
+  // Of those votes, the ones for a shape chosen as itself (a point's own
+  // shape, or a representative), not merely standing with others on a
+  // point: a shape that moves only the skin between bundles stands with
+  // the neutral on every point and has none.
+  std::vector<double> explicit_votes(data_.num_shapes + 1, 0.0);
   for (int k = 0; k < K; ++k) {
     const auto st = f.bundles[k].status;
     if (tied[k] || (st != BundleSolve::Status::kInside &&
@@ -357,7 +385,10 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
       continue;
     }
     if (tie.chosen_representative[k] != kNoRepresentative) {
-      if (tie.chosen_representative[k] >= 0) consensus[tie.chosen_representative[k] + 1] += 1.0;
+      if (tie.chosen_representative[k] >= 0) {
+        consensus[tie.chosen_representative[k] + 1] += 1.0;
+        explicit_votes[tie.chosen_representative[k] + 1] += 1.0;
+      }
       continue;
     }
     const BundleIndex& b = index_.bundles[k];
@@ -375,14 +406,30 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
         }
       }
       for (int r : index_.represented[k][s.corner[i]]) consensus[r + 1] += w;
+      explicit_votes[shape + 1] += w;
     }
   }
+  // A tie entry standing on a point for another of its shapes (not the
+  // candidate's own choice) competes with the point's own blend only for a
+  // shape some untied bundle chose as itself.
+  auto contends = [&](int r) { return r >= 0 && explicit_votes[r + 1] > 0; };
   ParallelFor(0, K, [&](int64_t k) {
     if (!tied[k]) return;
     const BundleIndex& b = index_.bundles[k];
+    // Whether an entry stands on simplex `simplex` for shape r.
+    auto has_entry = [&](int simplex, int r) {
+      for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+        if (tie.candidates[k][t].simplex == simplex &&
+            tie.representative[k][t] == r) {
+          return true;
+        }
+      }
+      return false;
+    };
     int best_t = -1;
     double best_score = 0, best_motion = 0;
     for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+      if (!tie.primary[k][t] && !contends(tie.representative[k][t])) continue;
       const IndexCandidate& cand = tie.candidates[k][t];
       const CloudSimplex& s = b.simplices()[cand.simplex];
       double score = 0, motion = 0;
@@ -395,11 +442,18 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
           if (r >= 0 && w > 0.5) score += consensus[r + 1];
           continue;
         }
-        double support = 0;
         // The neutral carries no evidence ("nothing moved" is what most
-        // bundles see of any local shape), so only shapes count.
+        // bundles see of any local shape), so only shapes count. A shape
+        // the point stands for that ties as an entry of its own (on this
+        // point, as its representative) lends its support to that entry
+        // only: blending the point's shape is not blending it.
+        double support = 0;
         for (int r : index_.represented[k][s.corner[i]]) {
-          if (r >= 0) support = std::max(support, consensus[r + 1]);
+          if (r < 0 || (w >= 1.0 - 1e-9 && contends(r) &&
+                        has_entry(cand.simplex, r))) {
+            continue;
+          }
+          support = std::max(support, consensus[r + 1]);
         }
         score += w * support;
       }
@@ -500,18 +554,22 @@ FrameSolve LgiSolver::SolveFrame(const BundleFrame& bundles,
     if (q.candidates.empty()) return;  // filled from the neighbours below
     std::vector<double> cost;
     std::vector<int> rep, shared;
+    std::vector<std::vector<int>> tied;
     const double best = NeighbourCosts(static_cast<int>(k), q, observed,
-                                       unskinned, &cost, &rep);
+                                       unskinned, &cost, &rep, &tied);
     const int chosen =
         TemporalChoice(static_cast<int>(k), q, cost, best, previous, &shared);
     // The exact tie group (cost within tie_mm2 of the best): settled below,
     // once every bundle has a first choice, if its blends differ.
     for (size_t c = 0; c < q.candidates.size(); ++c) {
-      if (cost[c] <= best + options_.tie_mm2) {
+      if (cost[c] > best + options_.tie_mm2) continue;
+      tied[c].insert(tied[c].begin(), rep[c]);
+      for (int r : tied[c]) {
         tie.candidates[k].push_back(q.candidates[c]);
-        tie.representative[k].push_back(rep[c]);
+        tie.representative[k].push_back(r);
         tie.cost[k].push_back(cost[c]);
         tie.shared[k].push_back(shared[c]);
+        tie.primary[k].push_back(r == rep[c]);
       }
     }
     out.status = q.inside ? BundleSolve::Status::kInside

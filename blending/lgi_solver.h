@@ -105,12 +105,15 @@ class LgiSolver {
   IndexQuery GatherCandidates(int k, const Vec3& unskinned) const;
   // Step 3's neighbour criterion for each candidate (mm^2, plus its squared
   // projection distance), with the shape a point candidate stands for
-  // (kNoRepresentative: its own); returns the best cost.
+  // (kNoRepresentative: its own); returns the best cost. *tied: per
+  // candidate, the other shapes it stands for (kNoRepresentative: its own)
+  // whose cost ties with that one's, for BreakTies.
   double NeighbourCosts(int k, const IndexQuery& q,
                         const std::vector<char>& observed,
                         const std::vector<Vec3>& unskinned,
                         std::vector<double>* costs,
-                        std::vector<int>* representatives) const;
+                        std::vector<int>* representatives,
+                        std::vector<std::vector<int>>* tied) const;
   // Step 3's choice within the slack: the candidate sharing the most shapes
   // with the previous frame's choice (temporal preference), then the
   // cheapest; *shared_shapes: per candidate, the shapes shared.
@@ -118,16 +121,23 @@ class LgiSolver {
                      const std::vector<double>& cost, double best,
                      const FrameSolve* previous,
                      std::vector<int>* shared_shapes) const;
-  // Per bundle, the candidates whose cost ties with the best one.
+  // Per bundle, the candidates whose cost ties with the best one; a
+  // candidate on a point appears once per shape it stands for that ties
+  // (the bundle is tied, and votes for no shape, only when its candidates'
+  // own choices differ).
   struct TieGroups {
     explicit TieGroups(int num_bundles)
         : candidates(num_bundles), cost(num_bundles),
           representative(num_bundles), shared(num_bundles),
+          primary(num_bundles),
           chosen_representative(num_bundles, kNoRepresentative) {}
     std::vector<std::vector<IndexCandidate>> candidates;
     std::vector<std::vector<double>> cost;
     std::vector<std::vector<int>> representative;
     std::vector<std::vector<int>> shared;
+    // Whether the entry is its candidate's own choice of representative
+    // (the others: shapes it also stands for that tie).
+    std::vector<std::vector<char>> primary;
     std::vector<int> chosen_representative;  // of the first choice
   };
   // Step 3's ties: settled by the frame's consensus, then least motion.
@@ -153,10 +163,12 @@ class LgiSolver {
   // pruned into the neutral: they agree with the point's shape over the
   // bundle's region, not necessarily at the neighbours' sites). A candidate
   // on that point is scored with whichever of them best explains the
-  // neighbours. alt_point_[k][a], alt_shape_[k][a], alt_disp_[k].row(a)
-  // (3J, as site_disp_).
+  // neighbours and its own surface point. alt_point_[k][a],
+  // alt_shape_[k][a], alt_disp_[k].row(a) (3J, as site_disp_),
+  // alt_site_[k][a] (the shape's unskinned position of bundle k's point).
   std::vector<std::vector<int>> alt_point_, alt_shape_;
   std::vector<Eigen::MatrixXd> alt_disp_;
+  std::vector<std::vector<Vec3>> alt_site_;
   // Per bundle and cloud point: its shape's motion over the bundle's region,
   // sum_v lambda_k(v) |b*_n(v)| (mm), the last tie-breaker.
   std::vector<std::vector<double>> point_motion_;
