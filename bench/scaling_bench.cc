@@ -19,6 +19,10 @@
 //                             --shapes N`, 0 = the standard 108) on a
 //                             7,680-vertex actor, index with
 //                             max_edge_neighbours 24 (issue 25).
+//   BM_DatasetSizeSequence/<method>/<N>: the same actors, a 48-frame
+//                             performance solved as one sequence (counter
+//                             frame_time: s per frame, the per-sequence work
+//                             shared as in a shot).
 // Counters setup_s: the setup's wall time (actor, frames; once per
 // configuration); prepare_s: the method's first Prepare (lgi: the index).
 // method: 0 = lgi, 1 = blendshape, 2 = robust (the default). Default options (indexing/index_options.h:
@@ -44,6 +48,8 @@
 namespace hmc {
 namespace {
 
+constexpr int kSequenceFrames = 48;
+
 double PeakRssMb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -55,6 +61,9 @@ struct Setup {
   std::unique_ptr<MethodSolvers> solvers;
   std::vector<BundleFrame> frames;
   std::vector<JawPose> jaw;
+  // A performance of kSequenceFrames frames (BM_DatasetSizeSequence).
+  std::vector<BundleFrame> sequence;
+  std::vector<JawPose> sequence_jaw;
   double setup_s = 0;  // MakeSetup: the actor and the frames
   // Per method, the first Prepare (lgi: the index; robust after lgi: its
   // own precomputation only).
@@ -137,6 +146,11 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
   const TruthFrames truth = MakeTruthFrames(model, actor.markers, plan, to);
   s->frames = truth.bundles;
   for (const JawFrame& j : truth.jaw) s->jaw.push_back(j.pose);
+  to.kind = "performance";
+  to.frames = kSequenceFrames;
+  const TruthFrames performance = MakeTruthFrames(model, actor.markers, plan, to);
+  s->sequence = performance.bundles;
+  for (const JawFrame& j : performance.jaw) s->sequence_jaw.push_back(j.pose);
   return s;
 }
 
@@ -156,20 +170,17 @@ const char* MethodName(int64_t m) {
   return m == 0 ? "lgi" : m == 1 ? "blendshape" : "robust";
 }
 
-void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
-  // Google Benchmark calls this more than once; the first Prepare builds.
+void PrepareOnce(Setup& s, const std::string& method) {
+  // Google Benchmark calls a benchmark more than once; the first Prepare
+  // builds.
   if (!s.prepare_s.count(method)) {
     const StageTimer timer("prepare " + method);
     s.solvers->Prepare(method);
     s.prepare_s[method] = timer.ElapsedSeconds();
   }
-  size_t f = 0;
-  for (auto _ : state) {
-    const SolveResult r =
-        s.solvers->Solve(method, {s.frames[f]}, {s.jaw[f]});
-    benchmark::DoNotOptimize(r.meshes.front().data());
-    f = (f + 1) % s.frames.size();
-  }
+}
+
+void SetCounters(benchmark::State& state, Setup& s, const std::string& method) {
   state.SetLabel(method);
   state.counters["vertices"] = s.actor.NumVertices();
   state.counters["shapes"] = static_cast<double>(s.actor.shapes.size());
@@ -177,6 +188,33 @@ void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
   state.counters["peak_rss_mb"] = PeakRssMb();
   state.counters["setup_s"] = s.setup_s;
   state.counters["prepare_s"] = s.prepare_s[method];
+}
+
+void SolveFrames(benchmark::State& state, Setup& s, const std::string& method) {
+  PrepareOnce(s, method);
+  size_t f = 0;
+  for (auto _ : state) {
+    const SolveResult r =
+        s.solvers->Solve(method, {s.frames[f]}, {s.jaw[f]});
+    benchmark::DoNotOptimize(r.meshes.front().data());
+    f = (f + 1) % s.frames.size();
+  }
+  SetCounters(state, s, method);
+}
+
+// One solve of the whole performance per iteration: the per-sequence work
+// (robust: the noise, the shape prior, the correction's choice) is shared
+// by its frames as in a shot. Counter frame_time: wall time per frame (s).
+void SolveSequence(benchmark::State& state, Setup& s, const std::string& method) {
+  PrepareOnce(s, method);
+  for (auto _ : state) {
+    const SolveResult r = s.solvers->Solve(method, s.sequence, s.sequence_jaw);
+    benchmark::DoNotOptimize(r.meshes.front().data());
+  }
+  SetCounters(state, s, method);
+  state.counters["frame_time"] = benchmark::Counter(
+      static_cast<double>(s.sequence.size()),
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 void BM_Shapes(benchmark::State& state) {
@@ -213,6 +251,15 @@ void BM_DatasetSize(benchmark::State& state) {
   SolveFrames(state, GetSetup(c), MethodName(state.range(0)));
 }
 
+void BM_DatasetSizeSequence(benchmark::State& state) {
+  Config c;
+  c.grid_u = 96;
+  c.grid_v = 80;
+  c.generator_shapes = static_cast<int>(state.range(1));
+  c.max_edge_neighbours = 24;
+  SolveSequence(state, GetSetup(c), MethodName(state.range(0)));
+}
+
 void BM_Threads(benchmark::State& state) {
   const ThreadLimit limit(static_cast<int>(state.range(1)));
   SolveFrames(state, GetSetup(Config()), MethodName(state.range(0)));
@@ -238,6 +285,10 @@ BENCHMARK(BM_Vertices)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_DatasetSize)
+    ->ArgsProduct({{0, 2}, {0, 250, 500, 1000}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_DatasetSizeSequence)
     ->ArgsProduct({{0, 2}, {0, 250, 500, 1000}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
