@@ -262,8 +262,11 @@ double LgiSolver::NeighbourCosts(int k, const IndexQuery& q,
     alternatives.clear();
     if (on_point >= 0) {
       alternatives.emplace_back(kNoRepresentative, e + own);
-      for (size_t ai = 0; ai < alt_point_[k].size(); ++ai) {
-        if (alt_point_[k][ai] != on_point) continue;
+      // alt_point_[k] is sorted: the point's alternatives are one run.
+      const auto run = std::equal_range(alt_point_[k].begin(),
+                                        alt_point_[k].end(), on_point);
+      for (auto it = run.first; it != run.second; ++it) {
+        const size_t ai = static_cast<size_t>(it - alt_point_[k].begin());
         double ea = 0;
         for (int jj = 0; jj < J; ++jj) {
           if (!observed[nbrs[jj]]) continue;
@@ -417,14 +420,15 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
     if (!tied[k]) return;
     const BundleIndex& b = index_.bundles[k];
     // Whether an entry stands on simplex `simplex` for shape r.
+    std::vector<std::pair<int, int>> entries;  // (simplex, representative)
+    for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
+      entries.emplace_back(tie.candidates[k][t].simplex,
+                           tie.representative[k][t]);
+    }
+    std::sort(entries.begin(), entries.end());
     auto has_entry = [&](int simplex, int r) {
-      for (size_t t = 0; t < tie.candidates[k].size(); ++t) {
-        if (tie.candidates[k][t].simplex == simplex &&
-            tie.representative[k][t] == r) {
-          return true;
-        }
-      }
-      return false;
+      return std::binary_search(entries.begin(), entries.end(),
+                                std::make_pair(simplex, r));
     };
     int best_t = -1;
     double best_score = 0, best_motion = 0;

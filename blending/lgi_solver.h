@@ -163,7 +163,7 @@ class LgiSolver {
   // pruned into the neutral: they agree with the point's shape over the
   // bundle's region, not necessarily at the neighbours' sites). A candidate
   // on that point is scored with whichever of them best explains the
-  // neighbours and its own surface point. alt_point_[k][a],
+  // neighbours and its own surface point. alt_point_[k][a] (ascending),
   // alt_shape_[k][a], alt_disp_[k].row(a) (3J, as site_disp_),
   // alt_site_[k][a] (the shape's unskinned position of bundle k's point).
   std::vector<std::vector<int>> alt_point_, alt_shape_;
