@@ -242,22 +242,23 @@ void BM_Vertices(benchmark::State& state) {
   SolveFrames(state, GetSetup(c), MethodName(state.range(0)));
 }
 
-void BM_DatasetSize(benchmark::State& state) {
+// The actor of BM_DatasetSize*/<method>/<N>.
+Config DatasetSizeConfig(const benchmark::State& state) {
   Config c;
   c.grid_u = 96;
   c.grid_v = 80;
   c.generator_shapes = static_cast<int>(state.range(1));
   c.max_edge_neighbours = 24;
-  SolveFrames(state, GetSetup(c), MethodName(state.range(0)));
+  return c;
+}
+
+void BM_DatasetSize(benchmark::State& state) {
+  SolveFrames(state, GetSetup(DatasetSizeConfig(state)), MethodName(state.range(0)));
 }
 
 void BM_DatasetSizeSequence(benchmark::State& state) {
-  Config c;
-  c.grid_u = 96;
-  c.grid_v = 80;
-  c.generator_shapes = static_cast<int>(state.range(1));
-  c.max_edge_neighbours = 24;
-  SolveSequence(state, GetSetup(c), MethodName(state.range(0)));
+  SolveSequence(state, GetSetup(DatasetSizeConfig(state)),
+                MethodName(state.range(0)));
 }
 
 void BM_Threads(benchmark::State& state) {
