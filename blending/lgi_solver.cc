@@ -376,10 +376,12 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
     }
   });
   std::vector<double> consensus(data_.num_shapes + 1, 0.0);  // [shape + 1]
-  // Of those votes, the ones for a shape chosen as itself (a point's own
-  // shape, or a representative), not merely standing with others on a
-  // point: a shape that moves only the skin between bundles stands with
-  // the neutral on every point and has none.
+  // Of those votes, the ones for a shape whose bundle moved: a chosen
+  // representative, or a shape the chosen point stands for when that point
+  // is not the neutral's. A shape that moves only the skin between bundles
+  // stands with the neutral on every point and has none. Which of a merged
+  // point's shapes labels it is arbitrary (the first kept), so every shape
+  // the point stands for gets the vote.
   std::vector<double> explicit_votes(data_.num_shapes + 1, 0.0);
   for (int k = 0; k < K; ++k) {
     const auto st = f.bundles[k].status;
@@ -408,8 +410,13 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
           if (n == shape) w = wn;
         }
       }
-      for (int r : index_.represented[k][s.corner[i]]) consensus[r + 1] += w;
-      explicit_votes[shape + 1] += w;
+      const std::vector<int>& represented = index_.represented[k][s.corner[i]];
+      const bool moved = std::find(represented.begin(), represented.end(),
+                                   -1) == represented.end();
+      for (int r : represented) {
+        consensus[r + 1] += w;
+        if (moved) explicit_votes[r + 1] += w;
+      }
     }
   }
   // A tie entry standing on a point for another of its shapes (not the

@@ -3,7 +3,8 @@
 // mesh, indexed with the nearest-neighbour edge bound, reproduces every one
 // of its shapes from their noise-free bundles (docs/method.md, "Larger
 // datasets"). Several actor seeds: the ties between shapes that move only
-// the skin between bundles differ from one dataset to the next.
+// the skin between bundles differ from one dataset to the next. Seed 9 has
+// a true shape that is not the label of its merged cloud point (frame 908).
 #include <gtest/gtest.h>
 
 #include "blending/solve_method.h"
@@ -57,7 +58,7 @@ TEST_P(DatasetSize, VerificationAtAThousandShapes) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, DatasetSize, ::testing::Values(1, 2));
+INSTANTIATE_TEST_SUITE_P(Seeds, DatasetSize, ::testing::Values(1, 2, 9));
 
 }  // namespace
 }  // namespace hmc
