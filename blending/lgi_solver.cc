@@ -410,12 +410,10 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
           if (n == shape) w = wn;
         }
       }
-      const std::vector<int>& represented = index_.represented[k][s.corner[i]];
-      const bool moved = std::find(represented.begin(), represented.end(),
-                                   -1) == represented.end();
-      for (int r : represented) {
+      // Only the neutral's point (shape -1) stands for the neutral.
+      for (int r : index_.represented[k][s.corner[i]]) {
         consensus[r + 1] += w;
-        if (moved) explicit_votes[r + 1] += w;
+        if (shape >= 0) explicit_votes[r + 1] += w;
       }
     }
   }
