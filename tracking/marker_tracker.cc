@@ -39,6 +39,8 @@ void MarkerTrackerOptions::Register(OptionFields* fields) {
               "stereo swap check: largest ray gap of a named pair (mm)");
   fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection");
   fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
+  fields->Add("jaw_reach_deg", &jaw_reach_deg,
+              "largest change of the jaw opening between two frames that is followed (deg)");
   fields->Add("flow_check_px", &flow_check_px,
               "largest forward-backward flow disagreement (px)");
 }
@@ -65,6 +67,7 @@ bool MarkerTrackerOptions::Check() const {
   need(neighbours >= 1, "neighbours must be >= 1");
   need(flow_window >= 1 && flow_window <= 10, "flow_window must be in [1, 10]");
   need(flow_check_px > 0, "flow_check_px must be > 0");
+  need(jaw_reach_deg >= 1 && jaw_reach_deg <= 45, "jaw_reach_deg must be in [1, 45]");
   return ok;
 }
 
@@ -202,6 +205,35 @@ void ForEachJawPose(const std::array<double, 3>& lo, const std::array<double, 3>
   }
 }
 
+// Every cam0 x cam1 pair of detections whose rays pass within gap_mm: its
+// midpoint (helmet space) and the two detections.
+struct StereoPairs {
+  std::vector<Vec3> points;
+  std::vector<std::pair<int, int>> pair_of;
+};
+StereoPairs PairDetections(const HelmetRig& rig,
+                           const std::vector<std::vector<DotDetection>>& detections, double gap_mm) {
+  StereoPairs out;
+  std::vector<Ray3> rays0, rays1;
+  for (const DotDetection& d : detections[0]) rays0.push_back(PixelRay(rig.cameras[0], d.pixel));
+  for (const DotDetection& d : detections[1]) rays1.push_back(PixelRay(rig.cameras[1], d.pixel));
+  for (size_t i = 0; i < rays0.size(); ++i) {
+    for (size_t j = 0; j < rays1.size(); ++j) {
+      const RayApproach a = ClosestApproach(rays0[i], rays1[j]);
+      if (!a.ok || a.gap > gap_mm) continue;
+      out.points.push_back(a.midpoint);
+      out.pair_of.push_back({static_cast<int>(i), static_cast<int>(j)});
+    }
+  }
+  return out;
+}
+
+// The per-frame jaw search's reach in the two small motions of the jaw
+// (the opening's is an option): a lateral swing and a protrusion change
+// within a frame are a few degrees and millimetres at most.
+constexpr double kJawLateralReachDeg = 3;
+constexpr double kJawProtrudeReachMm = 2;
+
 int FlowWindow(double dot_size_px, double window) {
   return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
 }
@@ -229,21 +261,13 @@ void MarkerTracker::Register(const std::vector<std::vector<DotDetection>>& detec
     labelling_.reason = "two cameras are needed";
     return;
   }
-  std::vector<Ray3> rays0, rays1;
-  for (const DotDetection& d : detections[0]) rays0.push_back(PixelRay(rig_.cameras[0], d.pixel));
-  for (const DotDetection& d : detections[1]) rays1.push_back(PixelRay(rig_.cameras[1], d.pixel));
-  std::vector<Vec3> points;
-  std::vector<std::pair<int, int>> pair_of;
-  std::vector<int> partners0(rays0.size(), 0), partners1(rays1.size(), 0);
-  for (size_t i = 0; i < rays0.size(); ++i) {
-    for (size_t j = 0; j < rays1.size(); ++j) {
-      const RayApproach a = ClosestApproach(rays0[i], rays1[j]);
-      if (!a.ok || a.gap > options_.pair_gap_mm) continue;
-      points.push_back(a.midpoint);
-      pair_of.push_back({static_cast<int>(i), static_cast<int>(j)});
-      ++partners0[i];
-      ++partners1[j];
-    }
+  const StereoPairs pairs = PairDetections(rig_, detections, options_.pair_gap_mm);
+  const std::vector<Vec3>& points = pairs.points;
+  const std::vector<std::pair<int, int>>& pair_of = pairs.pair_of;
+  std::vector<int> partners0(detections[0].size(), 0), partners1(detections[1].size(), 0);
+  for (const auto& [i, j] : pair_of) {
+    ++partners0[i];
+    ++partners1[j];
   }
   labelling_.candidate_points = static_cast<int>(points.size());
   if (points.size() < 3) {
@@ -584,39 +608,68 @@ void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>&
     from.swap(f2);
     to.swap(t2);
   }
-  if (jaw_markers.size() < 4) return;
-  // The jaw near the previous frame's: a 1-unit grid within +-3, then a
-  // 0.25-unit grid within +-1, inside the dataset's range.
+  if (layout_.jaw_weights.empty()) return;
+  // The jaw near the previous frame's (file comment, Tracking): each
+  // jaw-moved marker's distance to its own triangulated point when it is
+  // named in both cameras, else to the nearest stereo candidate of any two
+  // detections (a lost chin dot is still a candidate, so the jaw follows a
+  // mouth that opens faster than the tracks), truncated at inlier_mm. A
+  // 1-unit grid within the reach of one frame's motion, then a 0.25-unit
+  // grid within +-1, inside the dataset's range.
   const Rigid3 head_from_helmet = helmet_from_head_.inverse();
   for (Vec3& p : jaw_points) p = head_from_helmet * p;
+  StereoPairs pairs = PairDetections(rig_, detections, options_.pair_gap_mm);
+  for (Vec3& p : pairs.points) p = head_from_helmet * p;
+  const PointGrid grid(pairs.points, options_.inlier_mm);
+  std::vector<int> own(layout_.names.size(), -1);
+  for (size_t i = 0; i < jaw_markers.size(); ++i) own[jaw_markers[i]] = static_cast<int>(i);
+  std::vector<int> moving;
+  for (size_t k = 0; k < layout_.names.size(); ++k) {
+    if (layout_.jaw_weights[k] > 0.5) moving.push_back(static_cast<int>(k));
+  }
   const double cap = options_.inlier_mm * options_.inlier_mm;
-  auto cost = [&](const JawPose& pose) {
+  auto cost = [&](const JawPose& pose, int* on_point) {
     const Rigid3 t = layout_.jaw_rig.Transform(pose);
     double sum = 0;
-    for (size_t i = 0; i < jaw_markers.size(); ++i) {
-      const int k = jaw_markers[i];
-      sum += std::min(cap, (SkinPoint(t, layout_.positions[k], layout_.jaw_weights[k]) -
-                            jaw_points[i]).squaredNorm());
+    *on_point = 0;
+    for (int k : moving) {
+      const Vec3 q = SkinPoint(t, layout_.positions[k], layout_.jaw_weights[k]);
+      double d2 = cap;
+      if (own[k] >= 0) {
+        d2 = std::min(cap, (q - jaw_points[own[k]]).squaredNorm());
+      } else {
+        double d = 0;
+        if (grid.Nearest(q, options_.inlier_mm, &d) >= 0) d2 = d * d;
+      }
+      if (d2 < cap) ++*on_point;
+      sum += d2;
     }
     return sum;
   };
   JawPose best = jaw_;
-  double best_cost = cost(best);
-  for (const auto& [reach, step] : {std::pair<double, double>{3, 1}, {1, 0.25}}) {
+  int on_point = 0;
+  double best_cost = cost(best, &on_point);
+  int best_on_point = on_point;
+  const std::array<double, 3> reach = {options_.jaw_reach_deg, kJawLateralReachDeg,
+                                       kJawProtrudeReachMm};
+  for (const auto& [scale, step] : {std::pair<double, double>{1, 1}, {0, 0.25}}) {
     const std::array<double, 3> centre = best.ToArray();
     std::array<double, 3> lo{}, hi{};
     for (int i = 0; i < 3; ++i) {
-      lo[i] = std::max(layout_.jaw_lower[i], centre[i] - reach);
-      hi[i] = std::min(layout_.jaw_upper[i], centre[i] + reach);
+      const double r = scale > 0 ? reach[i] : 1.0;
+      lo[i] = std::max(layout_.jaw_lower[i], centre[i] - r);
+      hi[i] = std::min(layout_.jaw_upper[i], centre[i] + r);
     }
     ForEachJawPose(lo, hi, step, [&](const JawPose& pose) {
-      const double value = cost(pose);
+      const double value = cost(pose, &on_point);
       if (value < best_cost) {
         best = pose;
         best_cost = value;
+        best_on_point = on_point;
       }
     });
   }
+  if (best_on_point < 4) return;  // too few jaw markers seen to tell
   jaw_ = best;
   positions_ = layout_.PosedPositions(jaw_);
 }

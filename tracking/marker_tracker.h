@@ -37,9 +37,12 @@
 //   dot), the gate a fraction of the distance to the nearest other dot.
 //   Then the head pose is refitted (trimmed rigid fit of the layout to the
 //   markers named in both cameras), with a jaw rig the jaw pose too (a
-//   local grid search around the previous frame's minimising the truncated
-//   squared distances of the jaw-weighted markers' triangulated points to
-//   the posed layout), and the lost and never-seen dots are named from the
+//   grid search within `jaw_reach_deg` of the previous frame's opening
+//   minimising, over the jaw-moved markers of the posed layout, the
+//   truncated squared distance to the marker's own triangulated point if
+//   it is named in both cameras, else to the nearest point of any stereo
+//   pair of detections, so a fast opening whose chin dots were lost is
+//   still followed), and the lost and never-seen dots are named from the
 //   layout at that jaw pose as at the reference frame (step 3) with the tighter
 //   `reacquire_gate`: projection under the pose, corrected by the named
 //   neighbours' residuals, unambiguous matches only. A dot named in both
@@ -76,6 +79,7 @@ struct MarkerTrackerOptions {
   int neighbours = 6;                // layout neighbours whose residuals correct a projection
   double flow_window = 3;            // Lucas-Kanade window (dot diameters)
   double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
+  double jaw_reach_deg = 8;          // largest jaw opening change between frames followed (deg)
 
   void Register(OptionFields* fields);
   bool Check() const;
