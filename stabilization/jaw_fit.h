@@ -45,7 +45,7 @@ struct JawOptions {
   double smoothness = 0.01;      // mu: temporal prior on second differences (mm^2 per deg^2, or per mm^2 for protrude)
   double bound_margin = 0.25;    // bounds: the dataset's jaw range widened by this fraction of it (at least 1 deg / 1 mm) on each side
   double ridge = 0.1;            // lambda: ridge on the global shape weights (mm^2 per unit weight^2)
-  int min_jaw_markers = 4;       // fewer jaw markers present: the frame is interpolated
+  int min_jaw_markers = 2;       // fewer jaw markers present: the frame is interpolated (docs/stabilization.md)
   double min_marker_fraction = 0;  // fewer than this fraction of the shot's median jaw-marker count: the fit is not trusted (interpolated; 0 = off, docs/stabilization.md)
   double max_residual_ratio = 0;  // > 0: a residual above this many times the shot's median residual: the fit is not trusted (interpolated); 0 = off
   std::string lip_prefix = "mouth_lower";  // markers named so (or tagged lower_lip) join the jaw markers

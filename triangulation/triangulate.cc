@@ -27,6 +27,9 @@ void TriangulateOptions::Register(OptionFields* fields) {
   fields->Add("min_ray_angle_deg", &min_ray_angle_deg,
               "views whose rays meet at a smaller angle are not triangulated (deg)");
   fields->Add("max_iterations", &max_iterations, "Gauss-Newton iterations of the refinement");
+  fields->Add("consistency_p", &consistency_p,
+              "false-rejection rate of the stereo consistency test: a bundle whose rays miss "
+              "by more than the shot's pixel noise explains at this level is dropped (0 = off)");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
   fields->Add("dot_radius", &dot_radius,
               "painted dot radius (mm), for the rim-depth correction with --actor");
@@ -47,6 +50,7 @@ bool TriangulateOptions::Check() const {
   }
   if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations must be in [1, 1000]");
   if (threads < 0) fail("threads must be >= 0");
+  if (!(consistency_p >= 0 && consistency_p < 0.5)) fail("consistency_p must be in [0, 0.5)");
   if (!(dot_radius >= 0 && dot_radius < 20)) fail("dot_radius must be in [0, 20) mm");
   if (!(dot_fit_radius > 0 && dot_fit_radius < 50)) fail("dot_fit_radius must be in (0, 50) mm");
   return ok;
@@ -59,16 +63,18 @@ const char* TriangulationStatusName(TriangulationStatus status) {
     case TriangulationStatus::kParallel: return "parallel";
     case TriangulationStatus::kBehind: return "behind";
     case TriangulationStatus::kNoRay: return "no_ray";
+    case TriangulationStatus::kInconsistent: return "inconsistent";
   }
   return "?";
 }
 
 std::string TriangulateSummary::BriefReport() const {
   return fmt::format(
-      "{} frames: {} of {} marker-frames triangulated ({} gated, {} parallel, {} behind, {} "
-      "without a ray), {} mono rays; residual RMS {:.3f} px, max {:.3f} px; median depth "
-      "uncertainty {:.3f} mm; {:.0f} frames/s",
-      frames, triangulated, candidates, gated, parallel, behind, no_ray, mono, rms_residual_px,
+      "{} frames: {} of {} marker-frames triangulated ({} gated, {} inconsistent with pixel "
+      "noise {:.3f} px, {} parallel, {} behind, {} without a ray), {} mono rays; residual RMS "
+      "{:.3f} px, max {:.3f} px; median depth uncertainty {:.3f} mm; {:.0f} frames/s",
+      frames, triangulated, candidates, gated, inconsistent, pixel_noise_px, parallel, behind,
+      no_ray, mono, rms_residual_px,
       max_residual_px, median_depth_sigma_mm, seconds > 0 ? frames / seconds : 0.0);
 }
 
@@ -216,6 +222,74 @@ void Triangulate(const HelmetRig& rig, const std::vector<View>& views,
 
 std::string Num(double x) { return fmt::format("{:.9g}", x); }
 
+// The standard normal's quantile at probability P in (0, 1), by bisection
+// on erfc (exact to ~1e-12; called a few times per run).
+double NormalQuantile(double P) {
+  double lo = -40, hi = 40;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < P ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// The chi^2 distribution's quantile with k degrees of freedom at
+// probability P: exact for k = 1 (a squared normal) and k = 2 (an
+// exponential), Wilson-Hilferty's cube-root normal approximation above
+// (relative error < 1 % for k >= 3 at the probabilities used here).
+double ChiSquaredQuantile(int k, double P) {
+  if (k == 1) {
+    const double z = NormalQuantile(0.5 * (1 + P));
+    return z * z;
+  }
+  if (k == 2) return -2 * std::log1p(-P);
+  const double a = 2.0 / (9.0 * k);
+  const double c = 1 - a + NormalQuantile(P) * std::sqrt(a);
+  return k * c * c * c;
+}
+
+// The refined cost E (px^2) of a record and its degrees of freedom 2V - 3.
+double RecordCost(const TriangulationRecord& record) {
+  double cost = 0;
+  for (double e : record.residual_px) {
+    if (!std::isnan(e)) cost += e * e;
+  }
+  return cost;
+}
+
+// Step 5 of the method (triangulate.h): estimates the pixel noise from the
+// ok records' costs and marks those beyond the (1 - p) quantile
+// inconsistent. Returns the noise (px), 0 when the test did not run.
+double RejectInconsistent(double p, std::vector<std::vector<TriangulationRecord>>* records) {
+  constexpr int kMinRecords = 20;
+  constexpr double kNoiseFloorPx = 0.01;  // centroid precision of 8-bit footage
+  if (p <= 0) return 0;
+  std::vector<double> normalised;
+  for (const auto& frame : *records) {
+    for (const TriangulationRecord& r : frame) {
+      if (r.status != TriangulationStatus::kOk || r.views < 2) continue;
+      normalised.push_back(RecordCost(r) / ChiSquaredQuantile(2 * r.views - 3, 0.5));
+    }
+  }
+  if (static_cast<int>(normalised.size()) < kMinRecords) return 0;
+  const auto mid = normalised.begin() + normalised.size() / 2;
+  std::nth_element(normalised.begin(), mid, normalised.end());
+  const double sigma = std::max(std::sqrt(*mid), kNoiseFloorPx);
+  std::map<int, double> threshold;  // by degrees of freedom
+  for (auto& frame : *records) {
+    for (TriangulationRecord& r : frame) {
+      if (r.status != TriangulationStatus::kOk || r.views < 2) continue;
+      const int dof = 2 * r.views - 3;
+      auto it = threshold.find(dof);
+      if (it == threshold.end()) {
+        it = threshold.emplace(dof, sigma * sigma * ChiSquaredQuantile(dof, 1 - p)).first;
+      }
+      if (RecordCost(r) > it->second) r.status = TriangulationStatus::kInconsistent;
+    }
+  }
+  return sigma;
+}
+
 }  // namespace
 
 TriangulateOutput RunTriangulate(const TriangulateInput& input,
@@ -282,6 +356,7 @@ TriangulateOutput RunTriangulate(const TriangulateInput& input,
     }
   }, 4);
   TriangulateOutput out;
+  out.summary.pixel_noise_px = RejectInconsistent(options.consistency_p, &records);
   out.summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   TriangulateSummary& s = out.summary;
@@ -310,6 +385,7 @@ TriangulateOutput RunTriangulate(const TriangulateInput& input,
         case TriangulationStatus::kParallel: ++s.parallel; break;
         case TriangulationStatus::kBehind: ++s.behind; break;
         case TriangulationStatus::kNoRay: ++s.no_ray; break;
+        case TriangulationStatus::kInconsistent: ++s.inconsistent; break;
       }
       out.records.push_back(std::move(record));
     }

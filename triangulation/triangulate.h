@@ -17,7 +17,18 @@
 //     pixel noise) two-view triangulation;
 //  4. the pair is gated: a view whose residual exceeds gate_px means a
 //     mislabel or a bad detection; the marker-frame is dropped, counted and
-//     listed (status "gated").
+//     listed (status "gated");
+//  5. the stereo consistency test: the refined cost E of a correct bundle
+//     under isotropic pixel noise sigma is sigma^2 chi^2(2V - 3). sigma is
+//     estimated robustly from the shot itself (the median of E over the
+//     bundles divided by the chi^2 median, floored at 0.01 px, the centroid
+//     precision of 8-bit footage), and a bundle whose E exceeds
+//     sigma^2 q_{1-p} of chi^2(2V - 3) (p = consistency_p) is dropped with
+//     status "inconsistent". Such bundles are mostly dots cut by an occluder
+//     or the lip line in both views, whose centroids are biased each its own
+//     way: well inside gate_px, yet their rays miss by more than noise does.
+//     A batch test over the whole run (it needs the run's median); skipped
+//     below 20 bundles.
 // A marker seen by one camera only is not a bundle: its ray goes to rays.csv.
 //
 // Depth uncertainty: with J the 2V x 3 Jacobian of the residuals at p and
@@ -44,6 +55,7 @@ struct TriangulateOptions {
   double noise_px = 0.1;          // expected accuracy of the tracks (px, floor of the uncertainty)
   double min_ray_angle_deg = 1.0;  // views whose rays meet at a smaller angle are not triangulated (deg)
   int max_iterations = 20;        // Gauss-Newton iterations of the refinement
+  double consistency_p = 0.001;   // false-rejection rate of the stereo consistency test (0 = off)
   int threads = 0;                // worker threads (0 = all cores)
   // The painted dot's offset (triangulation/dot_offset.h), applied when the
   // command is given the actor (--actor):
@@ -60,6 +72,7 @@ enum class TriangulationStatus {
   kParallel,  // the rays meet at less than min_ray_angle_deg
   kBehind,    // the point lies behind a camera
   kNoRay,     // a pixel could not be unprojected (outside the lens model)
+  kInconsistent,  // the views' rays miss each other by more than the shot's noise explains
 };
 const char* TriangulationStatusName(TriangulationStatus status);
 
@@ -101,6 +114,8 @@ struct TriangulateSummary {
   int parallel = 0;
   int behind = 0;
   int no_ray = 0;
+  int inconsistent = 0;     // dropped by the stereo consistency test
+  double pixel_noise_px = 0;      // the shot's pixel noise estimated by the test (0: not run)
   int mono = 0;             // marker-frames seen by one camera (rays.csv rows)
   double rms_residual_px = 0;     // over the triangulated views
   double max_residual_px = 0;
