@@ -248,7 +248,7 @@ double ChiSquaredQuantile(int k, double P) {
   return k * c * c * c;
 }
 
-// The refined cost E (px^2) of a record and its degrees of freedom 2V - 3.
+// The refined cost E (px^2) of a record: its squared residuals' sum.
 double RecordCost(const TriangulationRecord& record) {
   double cost = 0;
   for (double e : record.residual_px) {
@@ -264,27 +264,35 @@ double RejectInconsistent(double p, std::vector<std::vector<TriangulationRecord>
   constexpr int kMinRecords = 20;
   constexpr double kNoiseFloorPx = 0.01;  // centroid precision of 8-bit footage
   if (p <= 0) return 0;
+  // Per degrees of freedom 2V - 3: the chi^2 median and (1 - p) quantile.
+  std::map<int, std::pair<double, double>> quantiles;
+  auto quantiles_of = [&](const TriangulationRecord& r) -> const std::pair<double, double>& {
+    const int dof = 2 * r.views - 3;
+    auto it = quantiles.find(dof);
+    if (it == quantiles.end()) {
+      it = quantiles.emplace(dof, std::pair(ChiSquaredQuantile(dof, 0.5),
+                                            ChiSquaredQuantile(dof, 1 - p))).first;
+    }
+    return it->second;
+  };
   std::vector<double> normalised;
   for (const auto& frame : *records) {
     for (const TriangulationRecord& r : frame) {
-      if (r.status != TriangulationStatus::kOk || r.views < 2) continue;
-      normalised.push_back(RecordCost(r) / ChiSquaredQuantile(2 * r.views - 3, 0.5));
+      if (r.status == TriangulationStatus::kOk) {
+        normalised.push_back(RecordCost(r) / quantiles_of(r).first);
+      }
     }
   }
   if (static_cast<int>(normalised.size()) < kMinRecords) return 0;
   const auto mid = normalised.begin() + normalised.size() / 2;
   std::nth_element(normalised.begin(), mid, normalised.end());
   const double sigma = std::max(std::sqrt(*mid), kNoiseFloorPx);
-  std::map<int, double> threshold;  // by degrees of freedom
   for (auto& frame : *records) {
     for (TriangulationRecord& r : frame) {
-      if (r.status != TriangulationStatus::kOk || r.views < 2) continue;
-      const int dof = 2 * r.views - 3;
-      auto it = threshold.find(dof);
-      if (it == threshold.end()) {
-        it = threshold.emplace(dof, sigma * sigma * ChiSquaredQuantile(dof, 1 - p)).first;
+      if (r.status == TriangulationStatus::kOk &&
+          RecordCost(r) > sigma * sigma * quantiles_of(r).second) {
+        r.status = TriangulationStatus::kInconsistent;
       }
-      if (RecordCost(r) > it->second) r.status = TriangulationStatus::kInconsistent;
     }
   }
   return sigma;
