@@ -28,7 +28,9 @@
 //     or the lip line in both views, whose centroids are biased each its own
 //     way: well inside gate_px, yet their rays miss by more than noise does.
 //     A batch test over the whole run (it needs the run's median); skipped
-//     below 20 bundles.
+//     below 20 bundles. The default p (1e-4) drops only clear misses: a biased bundle
+//     that is the last on its part of the face (the lower lip at a wide
+//     opening) is worth more to the solve than none (docs/calibration.md).
 // A marker seen by one camera only is not a bundle: its ray goes to rays.csv.
 //
 // Depth uncertainty: with J the 2V x 3 Jacobian of the residuals at p and
@@ -55,7 +57,7 @@ struct TriangulateOptions {
   double noise_px = 0.1;          // expected accuracy of the tracks (px, floor of the uncertainty)
   double min_ray_angle_deg = 1.0;  // views whose rays meet at a smaller angle are not triangulated (deg)
   int max_iterations = 20;        // Gauss-Newton iterations of the refinement
-  double consistency_p = 0.001;   // false-rejection rate of the stereo consistency test (0 = off)
+  double consistency_p = 1e-4;    // false-rejection rate of the stereo consistency test (0 = off)
   int threads = 0;                // worker threads (0 = all cores)
   // The painted dot's offset (triangulation/dot_offset.h), applied when the
   // command is given the actor (--actor):
