@@ -5,12 +5,14 @@
 #include <CLI/CLI.hpp>
 
 #include "apps/command.h"
+#include "core/allocator.h"
 #include "core/error.h"
 #include "core/logging.h"
 #include "core/parallel.h"
 
 int main(int argc, char** argv) {
   using namespace hmc;
+  KeepFreedMemoryForReuse();
   CLI::App app("hmc: facial performance capture from stereo helmet-camera "
                "footage,\nby local geometric indexing of a dataset of facial "
                "shapes.",

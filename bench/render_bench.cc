@@ -3,12 +3,12 @@
 // synthetic actor, default render options with noise and vignetting),
 // geometry evaluation included, as `hmc synth shot` does per frame.
 //   build/bin/hmc_render_bench --benchmark_min_time=5
-#include <malloc.h>
 
 #include <memory>
 
 #include <benchmark/benchmark.h>
 
+#include "core/allocator.h"
 #include "core/parallel.h"
 #include "synth/face_model.h"
 #include "synth/footage.h"
@@ -28,7 +28,7 @@ struct Fixture {
 
 Fixture& Get() {
   static Fixture* fixture = [] {
-    KeepRenderBuffersMapped();
+    KeepFreedMemoryForReuse();
     auto* f = new Fixture;
     SynthActorOptions synth;
     f->model = std::make_unique<FaceModel>(synth);

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/actor.h"
+#include "core/allocator.h"
 #include "core/calibration.h"
 #include "core/parallel.h"
 #include "synth/face_model.h"
@@ -99,4 +100,12 @@ BENCHMARK(BM_DetectOneView)->Unit(benchmark::kMillisecond)->UseRealTime();
 }  // namespace
 }  // namespace hmc
 
-BENCHMARK_MAIN();
+// As `hmc` does (apps/main.cc): the allocator keeps freed frames for reuse.
+int main(int argc, char** argv) {
+  hmc::KeepFreedMemoryForReuse();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,6 +1,5 @@
 #include "synth/footage_shot.h"
 
-#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
@@ -15,6 +14,7 @@
 #include <opencv2/videoio.hpp>
 #include <spdlog/spdlog.h>
 
+#include "core/allocator.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
@@ -160,15 +160,6 @@ cv::Mat ContactPanel(const cv::Mat& image, const std::vector<DotTruth>& dots, bo
   return bgr;
 }
 
-}  // namespace
-
-void KeepRenderBuffersMapped() {
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 512 << 20);
-}
-
-namespace {
-
 Vec3 RandomUnit(SynthRandom* rng) {
   const Vec3 v(rng->Normal(), rng->Normal(), rng->Normal());
   return v.normalized();
@@ -212,7 +203,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   if (!options.Check()) throw InputError("invalid synth shot options (see the message above)");
   const auto start = std::chrono::steady_clock::now();
   ThreadLimit thread_limit(options.threads);
-  KeepRenderBuffersMapped();
+  KeepFreedMemoryForReuse();
   EnsureDirectory(out_dir);
   const PerformanceOptions& perf = options.performance;
   const HelmetRig rig = MakeShotRig(model, options.rig);

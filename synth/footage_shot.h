@@ -53,13 +53,6 @@ struct SynthShotSummary {
   std::string BriefReport() const;
 };
 
-// Makes the C library keep freed large blocks mapped (glibc mallopt: no
-// mmap below 32 MB, no heap trimming below 512 MB). Otherwise every frame's
-// ~40 MB of image and raster buffers are returned to the kernel when freed
-// and faulted in again page by page on the next frame: measured 15-17 % of
-// the render time. Process-wide; RunSynthShot calls it.
-void KeepRenderBuffersMapped();
-
 // `rig` with every camera's pose and focal length perturbed as
 // SynthShotOptions::nominal_* say (seeded, deterministic).
 HelmetRig PerturbRig(const HelmetRig& rig, double mm, double deg, double focal_pct,

@@ -11,6 +11,7 @@
 #include <opencv2/video/tracking.hpp>
 #include <spdlog/spdlog.h>
 
+#include "core/parallel.h"
 #include "tracking/assignment.h"
 #include "tracking/stereo_rays.h"
 
@@ -723,11 +724,14 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
   std::vector<bool> present(num_cameras);
   for (int c = 0; c < num_cameras; ++c) present[c] = !images[c].empty();
-  for (int c = 0; c < num_cameras; ++c) {
+  // The cameras are independent until the stereo check: each one's flow
+  // and matching touch only its own state, side by side.
+  ParallelFor(0, num_cameras, [&](int64_t camera) {
+    const int c = static_cast<int>(camera);
     if (!present[c]) {
       out[c].skipped = true;
       pyramid_[c].clear();
-      continue;
+      return;
     }
     const int window = FlowWindow(dot_size_px_[c], options_.flow_window);
     std::vector<cv::Mat> pyramid = FlowPyramid(images[c], window);
@@ -775,7 +779,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
       prediction[k] = flow_ok[k] ? flow_to[k] : Vec2(s.position + s.velocity);
     }
     Match(c, detections[c], prediction, predicted, fraction, false, &detection_of[c]);
-  }
+  });
   StereoCheck(detections, &detection_of, &out);
   // Re-acquisition: the lost and never-seen dots from the layout under the
   // current head pose, corrected by their named neighbours.

@@ -1,0 +1,16 @@
+// Process-wide tuning of the C allocator for hmc's per-frame work.
+#pragma once
+
+namespace hmc {
+
+// Every frame of footage allocates and frees tens of megabytes of images
+// (decoded frames, float copies, box filters, label maps: 1-5 MB each).
+// glibc serves such blocks with mmap, or trims them back to the system when
+// freed, so each frame touches fresh pages: on `hmc track` the page faults
+// took over a third of the time (docs/PERFORMANCE.md). This keeps blocks up
+// to 32 MB in the heap and freed memory for reuse (peak memory is
+// unchanged: what is kept was in use before). Call once, first thing in
+// main(); a no-op off glibc.
+void KeepFreedMemoryForReuse();
+
+}  // namespace hmc
