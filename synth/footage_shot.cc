@@ -1,6 +1,5 @@
 #include "synth/footage_shot.h"
 
-
 #include <algorithm>
 #include <chrono>
 #include <future>
