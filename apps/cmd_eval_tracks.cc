@@ -33,6 +33,8 @@ HMC_COMMAND(EvalTracks, "", "eval-tracks",
           {"full_named", s.full_named}, {"partial", s.partial},
           {"partial_named", s.partial_named}, {"hidden", s.hidden},
           {"hidden_rows", s.hidden_rows}, {"wrong", s.wrong},
+          {"wrong_other", s.wrong_other}, {"wrong_off", s.wrong_off},
+          {"partial_half", s.partial_half}, {"partial_half_named", s.partial_half_named},
           {"median_px", s.median_px}, {"p95_px", s.p95_px},
           {"max_px", s.max_px}};
       WriteFileAtomic(*json, j.dump(1));

@@ -91,10 +91,20 @@ void WriteTracks2dCsv(const std::filesystem::path& path,
 }
 
 std::vector<Dot2dTruth> ReadDots2dCsv(const std::filesystem::path& path) {
-  static const std::vector<std::string> header = {
-      "frame", "camera", "marker", "x", "y", "visible", "disc", "cx", "cy"};
+  std::vector<std::string> header = {"frame", "camera", "marker", "x",  "y",
+                                     "visible", "disc", "cx",   "cy", "seen"};
+  const std::string text = ReadFile(path);
+  // `seen` came later: a file whose first non-blank line lacks it is read
+  // without it.
+  bool first = true;
+  ForEachLine(text, [&](int number, std::string_view line) {
+    if (!first || Trim(line).empty()) return;
+    first = false;
+    const std::vector<std::string> fields = SplitCsvRecord(line, path, number);
+    if (fields.empty() || fields.back() != "seen") header.pop_back();
+  });
   std::vector<Dot2dTruth> dots;
-  ForEachCsvRow(path, header, [&](const CsvRow& row) {
+  ForEachCsvRowInText(text, path, header, [&](const CsvRow& row) {
     Dot2dTruth d;
     d.frame = row.Int(0);
     d.camera = row.NonEmpty(1);
@@ -116,6 +126,10 @@ std::vector<Dot2dTruth> ReadDots2dCsv(const std::filesystem::path& path) {
     if (!row.Empty(7) || !row.Empty(8)) {
       d.has_centroid = true;
       d.centroid = Vec2(row.Finite(7), row.Finite(8));
+    }
+    if (row.size() > 9) {
+      d.seen = row.Finite(9);
+      if (d.seen < 0 || d.seen > 1) row.Fail("seen {} is outside [0, 1]", d.seen);
     }
     dots.push_back(std::move(d));
   });

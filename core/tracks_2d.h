@@ -3,8 +3,9 @@
 //                  what `hmc track` writes and `hmc triangulate` reads: a row
 //                  per named dot per frame and camera (px in the fisheye
 //                  image, OpenCV pixel centres; score in [0, 1]).
-//   dots_2d.csv    frame,camera,marker,x,y,visible,disc,cx,cy
-//                  the ground truth of a synthetic shot (`hmc synth shot`).
+//   dots_2d.csv    frame,camera,marker,x,y,visible,disc,cx,cy[,seen]
+//                  the ground truth of a synthetic shot (`hmc synth shot`;
+//                  shots rendered before `seen` existed lack the column).
 #pragma once
 
 #include <filesystem>
@@ -45,6 +46,9 @@ struct Dot2dTruth {
   DotDiscState disc = DotDiscState::kHidden;
   bool has_centroid = false;  // `full` dots only
   Vec2 centroid = Vec2::Zero();  // the dot's intensity centroid (px)
+  // Fraction of the disc seen, in [0, 1] (docs/formats.md); negative when
+  // the file has no `seen` column.
+  double seen = -1;
 };
 
 // Reads dots_2d.csv in file order. Throws InputError with file and line.

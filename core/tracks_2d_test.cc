@@ -77,6 +77,29 @@ TEST(Tracks2dTest, ReadsShotGroundTruthDots) {
   EXPECT_FALSE(dots[1].has_centroid);
   EXPECT_FALSE(dots[2].visible);
   EXPECT_EQ(dots[2].disc, DotDiscState::kHidden);
+  EXPECT_LT(dots[0].seen, 0);  // a file from before the `seen` column
+}
+
+TEST(Tracks2dTest, ReadsTheSeenFractionAndRejectsOneOutOfRange) {
+  TempDir dir;
+  const std::string header = "frame,camera,marker,x,y,visible,disc,cx,cy,seen\n";
+  WriteFileAtomic(dir.path() / "d.csv", header +
+                                            "1,cam0,a,10.5,20.25,1,full,10.6,20.2,1.000\n"
+                                            "1,cam0,b,11,21,1,partial,,,0.375\n");
+  const std::vector<Dot2dTruth> dots = ReadDots2dCsv(dir.path() / "d.csv");
+  ASSERT_EQ(dots.size(), 2u);
+  EXPECT_DOUBLE_EQ(dots[0].seen, 1.0);
+  EXPECT_DOUBLE_EQ(dots[1].seen, 0.375);
+  WriteFileAtomic(dir.path() / "bad.csv", header + "1,cam0,b,11,21,1,partial,,,1.5\n");
+  try {
+    ReadDots2dCsv(dir.path() / "bad.csv");
+    FAIL() << "a seen fraction of 1.5 was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.csv:2"), std::string::npos) << e.what();
+  }
+  // A row with a field too few for its header is refused.
+  WriteFileAtomic(dir.path() / "short.csv", header + "1,cam0,b,11,21,1,partial,,\n");
+  EXPECT_THROW(ReadDots2dCsv(dir.path() / "short.csv"), InputError);
 }
 
 }  // namespace

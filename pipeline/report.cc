@@ -28,6 +28,7 @@
 #include "pipeline/run_pipeline.h"
 #include "pipeline/svg_plot.h"
 #include "tracking/footage_reader.h"
+#include "tracking/track_eval.h"
 
 namespace hmc {
 
@@ -266,62 +267,21 @@ void ReportWriter::TrackSection() {
   Plot(series, {"named dots per frame", "frame", "dots", 640, 220, true});
   const fs::path truth_file = shot_ / "dots_2d.csv";
   if (!Exists(truth_file)) return;
-  // Against the shot's ground truth: centre error of wholly visible dots,
-  // names given to the wrong dot, recall.
-  std::map<std::pair<int, std::string>, std::vector<const Dot2dTruth*>> by_view;
-  const std::vector<Dot2dTruth> dots = ReadDots2dCsv(truth_file);
-  std::map<std::tuple<int, std::string, std::string>, const Dot2dTruth*> truth;
-  for (const Dot2dTruth& d : dots) {
-    truth[{d.frame, d.camera, d.marker}] = &d;
-    if (d.visible) by_view[{d.frame, d.camera}].push_back(&d);
-  }
-  std::vector<double> errors;
-  std::map<int, std::vector<double>> per_frame;
-  int wrong = 0, hidden_rows = 0, full = 0, full_named = 0;
-  for (const Track2d& t : tracks_) {
-    const auto it = truth.find({t.frame, t.camera, t.marker});
-    if (it == truth.end() || !it->second->visible) {
-      ++hidden_rows;
-      continue;
-    }
-    const Dot2dTruth& d = *it->second;
-    const double own = (t.pixel - d.pixel).norm();
-    bool nearer_other = false;
-    for (const Dot2dTruth* o : by_view[{t.frame, t.camera}]) {
-      if (o != &d && (t.pixel - o->pixel).norm() < own) nearer_other = true;
-    }
-    wrong += nearer_other || own > 2;
-    if (d.has_centroid) {
-      const double e = (t.pixel - d.centroid).norm();
-      errors.push_back(e);
-      per_frame[t.frame].push_back(e);
-    }
-  }
-  for (const Dot2dTruth& d : dots) {
-    if (d.disc != DotDiscState::kFull) continue;
-    if (!named_.count({d.frame, d.camera, d.marker})) {
-      if (d.frame < (tracks_.empty() ? 0 : tracks_.front().frame) ||
-          d.frame > (tracks_.empty() ? 0 : tracks_.back().frame)) continue;
-    } else {
-      ++full_named;
-    }
-    ++full;
-  }
+  // Against the shot's ground truth, scored as `hmc eval-tracks` scores it.
+  const TrackScore score = ScoreTracks(tracks_, ReadDots2dCsv(truth_file));
   PlotSeries median{"median", {}}, p95{"p95", {}};
-  for (const auto& [f, e] : per_frame) {
+  for (const auto& [f, e] : score.full_errors_by_frame) {
     median.points.emplace_back(f, Percentile(e, 0.5));
     p95.points.emplace_back(f, Percentile(e, 0.95));
   }
   Plot({median, p95}, {"dot centre error against the truth (full dots)", "frame", "px", 640, 220, true});
-  summary_.accuracy["track"] = {{"full_dot_error_median_px", Percentile(errors, 0.5)},
-                                {"full_dot_error_p95_px", Percentile(errors, 0.95)},
-                                {"full_named_fraction", full ? double(full_named) / full : 0.0},
-                                {"wrong_names", wrong},
-                                {"rows_on_hidden_dots", hidden_rows}};
-  Note(fmt::format("Against the ground truth: full dots named {:.2f} %, centre error median {:.3f} px, "
-                   "p95 {:.3f} px; {} rows named a wrong dot; {} rows on hidden dots.",
-                   100.0 * (full ? double(full_named) / full : 0.0), Percentile(errors, 0.5),
-                   Percentile(errors, 0.95), wrong, hidden_rows));
+  summary_.accuracy["track"] = {{"full_dot_error_median_px", score.median_px},
+                                {"full_dot_error_p95_px", score.p95_px},
+                                {"full_named_fraction", score.FullRecall()},
+                                {"partial_named_fraction", score.PartialRecall()},
+                                {"wrong_names", score.wrong},
+                                {"rows_on_hidden_dots", score.hidden_rows}};
+  Note("Against the ground truth (as `hmc eval-tracks` scores it): " + score.BriefReport() + ".");
 }
 
 void ReportWriter::TriangulateSection() {

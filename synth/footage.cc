@@ -687,10 +687,13 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
   };
   // Seen at most kMaxDiscViewDeg off the normal of triangle `face`.
   const double min_cos = std::cos(kMaxDiscViewDeg * M_PI / 180);
-  auto not_grazing = [&](int face, const Vec3& q) {
+  // The cosine of the angle between triangle `face`'s normal and the view
+  // ray to q (negative: back-facing).
+  auto view_cos = [&](int face, const Vec3& q) {
     const Vec3 n = (corner(face, 1) - corner(face, 0)).cross(corner(face, 2) - corner(face, 0));
-    return n.dot(-q) >= min_cos * n.norm() * q.norm();
+    return n.dot(-q) / (n.norm() * q.norm());
   };
+  auto not_grazing = [&](int face, const Vec3& q) { return view_cos(face, q) >= min_cos; };
   // The disc samples in the unit disc of the skin: the rim and rings at
   // 3/4, 1/2 and 1/4 of the radius (16 + 12 + 8 + 4 points, ~0.3 mm apart
   // for the default dot), so a fold crossing the dot is found too.
@@ -715,25 +718,28 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
     if (!dot.projects || !dot.facing) return;
     Vec2 pixel;
     dot.visible = unoccluded(sp.face, dot.in_cam, &pixel);
-    if (!dot.visible) return;
     // The whole disc: samples st = centre + L^-T (r u) with G = L L^T, so
-    // that |offset| on the skin is r |u|.
-    dot.disc = DotDisc::kFull;
-    if (!not_grazing(sp.face, dot.in_cam)) dot.disc = DotDisc::kPartial;
+    // that |offset| on the skin is r |u|. Every sample is tested, so that
+    // `seen` says how much of a partial dot there is to find.
     const Eigen::Matrix2d L = dot_metric_[m].llt().matrixL();
-    for (size_t k = 0; k < unit_samples.size() && dot.disc == DotDisc::kFull; ++k) {
+    // The centre, then the disc: each sample's foreshortening where it is
+    // unoccluded, and whether it is seen squarely.
+    double seen = dot.visible ? std::max(0.0, view_cos(sp.face, dot.in_cam)) : 0.0;
+    int square = dot.visible && not_grazing(sp.face, dot.in_cam);
+    for (size_t k = 0; k < unit_samples.size(); ++k) {
       const Vec2 offset =
           L.transpose().triangularView<Eigen::Upper>().solve(options_.dot_radius * unit_samples[k]);
       const SurfacePoint sample = LocateFacePlane(dot_st_[m] + offset);
-      if (sample.face < 0) {
-        dot.disc = DotDisc::kPartial;  // off the painted mesh
-        break;
-      }
+      if (sample.face < 0) continue;  // off the painted mesh
       const Vec3 q = cam_from_head * EvaluateSurfacePoint(sample, F_, X_head);
-      if (!not_grazing(sample.face, q) || !unoccluded(sample.face, q, &pixel)) {
-        dot.disc = DotDisc::kPartial;
-      }
+      if (!unoccluded(sample.face, q, &pixel)) continue;
+      seen += std::max(0.0, view_cos(sample.face, q));
+      square += not_grazing(sample.face, q);
     }
+    const int samples = static_cast<int>(unit_samples.size()) + 1;
+    dot.seen = seen / samples;
+    if (!dot.visible) return;
+    dot.disc = square == samples ? DotDisc::kFull : DotDisc::kPartial;
     if (dot.disc != DotDisc::kFull) return;
     // The image of the whole dot is the inside of its projected rim: its
     // centroid is the rim polygon's area centroid.

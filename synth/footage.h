@@ -107,6 +107,15 @@ struct DotTruth {
   // of curvature), so its centre projects about h sin(view angle) away.
   // NaN for other dots.
   Vec2 centroid = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
+  // How much of the dot the camera sees, as a fraction of the dot seen
+  // face-on: the mean over its centre and disc samples (1 +
+  // FootageRenderer::kDiscSamples) of the cosine between the skin's normal
+  // and the view ray where the sample is on the painted mesh and unoccluded
+  // (0 where not). A face-on dot has 1, a kFull one at least
+  // cos(kMaxDiscViewDeg) = 0.5; a kPartial dot foreshortened to a sliver
+  // or cut by a silhouette little; a dot whose centre is hidden may still
+  // show part of its disc.
+  double seen = 0.0;
 };
 
 class FootageRenderer {

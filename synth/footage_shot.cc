@@ -266,7 +266,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   truth.fps = perf.fps;
   std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
   std::vector<JawFrame> jaw(num_frames);
-  std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy\n";
+  std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy,seen\n";
   std::vector<PoseFrame> poses(num_frames);
   SynthShotSummary summary;
   summary.frames = num_frames;
@@ -340,11 +340,12 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
         full += dots[m].disc == DotDisc::kFull;
         const Vec2& centroid = dots[m].centroid;
         dots_csv += fmt::format(
-            "{},{},{},{:.6f},{:.6f},{},{},{}\n", frame, rig.cameras[c].name,
+            "{},{},{},{:.6f},{:.6f},{},{},{},{:.3f}\n", frame, rig.cameras[c].name,
             actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
             DotDiscName(dots[m].disc),
             centroid.allFinite() ? fmt::format("{:.6f},{:.6f}", centroid.x(), centroid.y())
-                                 : std::string(","));
+                                 : std::string(","),
+            dots[m].seen);
       }
       if (contact.count(f)) {
         panels.push_back(ContactPanel(view.image, dots, options.contact_dots,

@@ -124,11 +124,11 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   std::istringstream in(ReadFile(a / "dots_2d.csv"));
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "frame,camera,marker,x,y,visible,disc,cx,cy");
-  int rows = 0, visible = 0, full = 0;
+  EXPECT_EQ(line, "frame,camera,marker,x,y,visible,disc,cx,cy,seen");
+  int rows = 0, visible = 0, full = 0, cut = 0;
   while (std::getline(in, line)) {
     std::istringstream row(line);
-    std::string frame, cam, marker, x, y, vis, disc, cx, cy;
+    std::string frame, cam, marker, x, y, vis, disc, cx, cy, seen;
     std::getline(row, frame, ',');
     std::getline(row, cam, ',');
     std::getline(row, marker, ',');
@@ -138,6 +138,17 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
     std::getline(row, disc, ',');
     std::getline(row, cx, ',');
     std::getline(row, cy, ',');
+    std::getline(row, seen, ',');
+    // How much of the dot is seen, relative to face-on: at least cos 60
+    // degrees of a full dot (every sample within 60 degrees of square),
+    // less than that of some partial ones (slivers, cut dots).
+    const double seen_fraction = std::stod(seen);
+    EXPECT_GE(seen_fraction, 0.0) << line;
+    EXPECT_LE(seen_fraction, 1.0) << line;
+    if (disc == "full") {
+      EXPECT_GE(seen_fraction, 0.5 - 1e-3) << line;  // written with 3 decimals
+    }
+    cut += disc == "partial" && seen_fraction < 0.5;
     // The expected dot centroid exists for fully visible dots only, and lies
     // near the projected marker (the skin's curvature moves it < 1.5 px).
     EXPECT_EQ(cx.empty(), disc != "full") << line;
@@ -161,6 +172,7 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   EXPECT_GT(visible, rows / 2);
   EXPECT_GT(full, rows / 10);
   EXPECT_LT(full, visible);
+  EXPECT_GT(cut, 0);  // some partial dots are slivers or cut
 }
 
 }  // namespace

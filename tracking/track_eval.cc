@@ -11,12 +11,17 @@
 namespace hmc {
 
 std::string TrackScore::BriefReport() const {
+  const std::string half =
+      partial_half > 0 ? fmt::format(" (at least half seen: {:.2f} % of {})",
+                                     100 * PartialHalfRecall(), partial_half)
+                       : std::string();
   return fmt::format(
       "full: median {:.4f} px, p95 {:.4f} px, max {:.3f} px, named {:.2f} % of {}; partial "
-      "named {:.2f} % of {}; wrong names {} of {} rows ({:.3f} %); rows on hidden dots {} of {} "
-      "({:.2f} %)",
-      median_px, p95_px, max_px, 100 * FullRecall(), full, 100 * PartialRecall(), partial, wrong,
-      rows, 100 * WrongFraction(), hidden_rows, hidden, 100 * HiddenFraction());
+      "named {:.2f} % of {}{}; wrong names {} of {} rows ({:.3f} %: {} nearer another marker's "
+      "dot, {} only more than 2 px off their own); rows on hidden dots {} of {} ({:.2f} %)",
+      median_px, p95_px, max_px, 100 * FullRecall(), full, 100 * PartialRecall(), partial, half,
+      wrong, rows, 100 * WrongFraction(), wrong_other, wrong_off, hidden_rows, hidden,
+      100 * HiddenFraction());
 }
 
 namespace {
@@ -58,11 +63,16 @@ TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot
         if (named) {
           ++score.full_named;
           errors.push_back((it->second->pixel - d.centroid).norm());
+          score.full_errors_by_frame[d.frame].push_back(errors.back());
         }
         break;
       case DotDiscState::kPartial:
         ++score.partial;
         score.partial_named += named;
+        if (d.seen >= 0.5) {
+          ++score.partial_half;
+          score.partial_half_named += named;
+        }
         break;
       case DotDiscState::kHidden:
         ++score.hidden;
@@ -75,17 +85,20 @@ TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot
     auto it = truth_by_key.find({t.frame, t.camera, t.marker});
     if (it == truth_by_key.end()) {
       ++score.wrong;
+      ++score.wrong_other;  // a marker the truth does not place here
       continue;
     }
     const Dot2dTruth& own = *it->second;
     const Vec2 own_centre = own.has_centroid ? own.centroid : own.pixel;
-    const double own_d = (t.pixel - own_centre).norm();
-    bool wrong = own_d > wrong_px;
+    const bool off = (t.pixel - own_centre).norm() > wrong_px;
+    bool other = false;
     const double own_point_d = (t.pixel - own.pixel).norm();
-    for (const Dot2dTruth* other : visible_by_view[{t.frame, t.camera}]) {
-      if (other->marker != t.marker && (t.pixel - other->pixel).norm() < own_point_d) wrong = true;
+    for (const Dot2dTruth* o : visible_by_view[{t.frame, t.camera}]) {
+      if (o->marker != t.marker && (t.pixel - o->pixel).norm() < own_point_d) other = true;
     }
-    score.wrong += wrong;
+    score.wrong += off || other;
+    score.wrong_other += other;
+    score.wrong_off += off && !other;
   }
   score.median_px = Quantile(errors, 0.5);
   score.p95_px = Quantile(errors, 0.95);

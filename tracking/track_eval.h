@@ -9,10 +9,16 @@
 //  - hidden rows: rows on `hidden` dot-views / hidden dot-views;
 //  - wrong names: rows more than `wrong_px` from their own marker's dot, or
 //    nearer another marker's (visible) dot than their own, or for a marker
-//    the truth does not place in the image.
+//    the truth does not place in the image; split into those nearer another
+//    marker's dot (`wrong_other`: a name on the wrong dot) and the rest
+//    (`wrong_off`: more than `wrong_px` from its own, nearest to no other:
+//    on a partial dot mostly the centroid of the part that is seen);
+//  - partial dot-views by how much of the disc is seen (`seen` in
+//    dots_2d.csv, when present): recall of those with at least half of it.
 // Only frames from the first tracked frame on are counted.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -25,10 +31,15 @@ struct TrackScore {
   int64_t full = 0, full_named = 0;
   int64_t partial = 0, partial_named = 0;
   int64_t hidden = 0, hidden_rows = 0;
-  int64_t wrong = 0;
+  int64_t partial_half = 0, partial_half_named = 0;  // partial, seen >= 0.5
+  int64_t wrong = 0, wrong_other = 0, wrong_off = 0;
   double median_px = 0, p95_px = 0, max_px = 0;  // full dots vs (cx, cy)
+  std::map<int, std::vector<double>> full_errors_by_frame;  // px, per frame
   double FullRecall() const { return full ? static_cast<double>(full_named) / full : 0; }
   double PartialRecall() const { return partial ? static_cast<double>(partial_named) / partial : 0; }
+  double PartialHalfRecall() const {
+    return partial_half ? static_cast<double>(partial_half_named) / partial_half : 0;
+  }
   double HiddenFraction() const { return hidden ? static_cast<double>(hidden_rows) / hidden : 0; }
   double WrongFraction() const { return rows ? static_cast<double>(wrong) / rows : 0; }
   std::string BriefReport() const;
