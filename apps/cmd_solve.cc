@@ -89,7 +89,7 @@ nlohmann::json FrameDiagnostics(const Actor& actor, const FrameSolve& f,
       const BundleSolve& b = f.bundles[k];
       nlohmann::json shapes = nlohmann::json::array();
       nlohmann::json weights = nlohmann::json::array();
-      for (const auto& [n, w] : b.weights) {
+      for (const auto& [n, w] : f.Weights(static_cast<int>(k))) {
         shapes.push_back(actor.shapes[n].name);
         weights.push_back(w);
       }

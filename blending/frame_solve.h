@@ -31,6 +31,9 @@ struct BundleSolve {
   std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
   std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
                                                 // shape, neutral omitted
+  bool global = false;  // its weights are the frame's global_weights (the
+                        // robust solve's global answer, held once a frame;
+                        // `weights` is then empty): read FrameSolve::Weights
   double cost = 0.0;         // neighbour criterion of the choice (mm^2)
   double residual = 0.0;     // |output surface at s_k - observed| (mm)
 };
@@ -42,6 +45,14 @@ struct FrameSolve {
   JawPose jaw;
   std::vector<BundleSolve> bundles;  // K, in marker order
   int unknown_markers = 0;           // names not in the actor (ignored)
+  // The weights every bundle flagged `global` takes (one copy a frame: a
+  // long shot holds every frame's record).
+  std::vector<std::pair<int, double>> global_weights;
+
+  // Bundle k's weights, wherever they are held.
+  const std::vector<std::pair<int, double>>& Weights(int k) const {
+    return bundles[k].global ? global_weights : bundles[k].weights;
+  }
 };
 
 // How every solver (lgi and the baselines) starts a frame: a FrameSolve

@@ -574,12 +574,14 @@ void RobustSolver::ChooseLocalOrGlobal(Sequence* seq) const {
         ++report.bundles_global;
       }
     }
+    fs.global_weights = wk.global_nonzero;
     for (int k = 0; k < K; ++k) {
       if (!wk.use_global[k]) continue;
       BundleSolve& b = fs.bundles[k];
-      b.weights = wk.global_nonzero;
+      b.weights = {};  // held once, in fs.global_weights
+      b.global = true;
       b.simplex = -1;
-      b.corner_shapes.clear();
+      b.corner_shapes = {};
     }
   }
 
@@ -596,7 +598,7 @@ void RobustSolver::SmoothAnswersInTime(Sequence* seq) const {
     const Work& wk = seq->work[good[i]];
     const FrameSolve& fs = seq->result.frames[good[i]];
     weights[i].resize(K);
-    for (int k = 0; k < K; ++k) weights[i][k] = fs.bundles[k].weights;
+    for (int k = 0; k < K; ++k) weights[i][k] = fs.Weights(k);
     frames[i] = {&weights[i], &wk.disp, &wk.observed};
   }
   std::vector<std::vector<int>> neighbours(K);
@@ -616,6 +618,7 @@ void RobustSolver::SmoothAnswersInTime(Sequence* seq) const {
       if (!changed[i][k]) continue;
       BundleSolve& b = fs.bundles[k];
       b.weights = std::move(weights[i][k]);
+      b.global = false;
       b.simplex = -1;
       b.corner_shapes.clear();
       wk.use_global[k] = 0;
