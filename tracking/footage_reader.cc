@@ -1,8 +1,10 @@
 #include "tracking/footage_reader.h"
 
 #include <algorithm>
+#include <chrono>
 #include <climits>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <system_error>
@@ -112,9 +114,10 @@ class CameraSource {
   // The image of `frame` (frames are asked for in increasing order), or
   // empty with `error` set.
   virtual cv::Mat Read(int frame, std::string* error) = 0;
-  // Passes over `frame` (asked for in the same order as Read) without
-  // producing its image: a video still decodes it, but does not convert it.
-  virtual void Skip(int frame) { (void)frame; }
+  // Passes over the frames before `frame` (asked for in the same order as
+  // Read) without producing their images: the next Read may ask for
+  // `frame`. A video decodes them, or seeks where that is cheaper.
+  virtual void SkipTo(int frame) { (void)frame; }
   // True once it is known that no frame >= `frame` will come (a video that
   // ended early: truncated, or without a declared length).
   virtual bool EndedBefore(int frame) const { return frame > last(); }
@@ -236,9 +239,19 @@ class VideoSource : public CameraSource {
     *error = "the frame does not decode";
     return {};
   }
-  void Skip(int frame) override {
+  void SkipTo(int frame) override {
+    const int gap = frame - pending_frame_;
+    if (ended_ || gap <= 0) return;
+    // A seek decodes from the keyframe before the target (OpenCV's FFmpeg
+    // backend also backs up 16 frames): cheaper than decoding `gap` frames
+    // only for sparse samples of a long video, by how much depends on the
+    // codec's keyframe spacing, which the container does not tell. So the
+    // first seek is tried for any gap above kMinSeekGap and timed; later
+    // ones are taken when the gap's frames would take longer to decode.
+    if (gap > kMinSeekGap && (seek_seconds_ < 0 || gap * decode_seconds_ > seek_seconds_)) {
+      if (Seek(frame)) return;
+    }
     while (!ended_ && pending_frame_ < frame) Advance();
-    if (!ended_ && pending_frame_ == frame) Advance();
   }
   bool EndedBefore(int frame) const override {
     return frame > last() || (ended_ && frame > last_decoded_);
@@ -254,15 +267,57 @@ class VideoSource : public CameraSource {
   }
 
  private:
+  static constexpr int kMinSeekGap = 48;
+
+  // Positions the video so that the next decoded frame is `frame`, by
+  // seeking (cv::CAP_PROP_POS_FRAMES counts from 0). The landing frame is
+  // named by its timestamp like every other; a seek that lands past
+  // `frame` or fails is undone by reopening the video and decoding up to
+  // it. Returns false when it fell back to that.
+  bool Seek(int frame) {
+    const auto start = std::chrono::steady_clock::now();
+    bool ok = false;
+    try {
+      ok = capture_.set(cv::CAP_PROP_POS_FRAMES, frame - 1);
+    } catch (const cv::Exception& e) {
+      spdlog::debug("{}: seek: {}", path_.string(), e.what());
+    }
+    ok = ok && Advance() && pending_frame_ <= frame;
+    seek_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (ok) {
+      while (!ended_ && pending_frame_ < frame) Advance();
+      return true;
+    }
+    spdlog::debug("{}: seeking to frame {} failed; decoding up to it", path_.string(), frame);
+    seek_seconds_ = std::numeric_limits<double>::infinity();  // do not seek again
+    capture_.release();
+    if (!capture_.open(path_.string(), cv::CAP_FFMPEG) || !capture_.isOpened()) {
+      ended_ = true;
+      return false;
+    }
+    capture_.set(cv::CAP_PROP_CONVERT_RGB, 0);
+    pending_frame_ = 0;
+    last_decoded_ = 0;
+    ended_ = false;
+    Advance();
+    while (!ended_ && pending_frame_ < frame) Advance();
+    return false;
+  }
+
   // Decodes the next frame (cv::VideoCapture::grab: not yet converted to
   // an image, see Retrieve) and numbers it; false (ended_) at the end.
   bool Advance() {
     bool got = false;
+    const auto start = std::chrono::steady_clock::now();
     try {
       got = capture_.grab();
     } catch (const cv::Exception& e) {
       spdlog::warn("{}: {}", path_.string(), e.what());
     }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    decode_seconds_ = decoded_ == 0 ? seconds : 0.9 * decode_seconds_ + 0.1 * seconds;
+    ++decoded_;
     if (!got) {
       ended_ = true;
       return false;
@@ -311,6 +366,11 @@ class VideoSource : public CameraSource {
   int declared_frames_ = 0;
   double fps_ = 0;  // frames per second, 0 if unknown (then frames are counted)
   bool ended_ = false;
+  // What a frame's decode and the last seek took (s; a seek not yet tried:
+  // negative), for SkipTo's choice between them.
+  double decode_seconds_ = 0;
+  int64_t decoded_ = 0;
+  double seek_seconds_ = -1;
 };
 
 // The source of camera `name`: the explicit path, else SHOT/<name>.<video
@@ -463,13 +523,20 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
       d.last = f - 1;  // a video ended early: what decoded is the shot
       continue;
     }
-    ++d.next;
     // The cameras' sources are independent: they decode side by side.
     const int64_t num_sources = static_cast<int64_t>(d.sources.size());
     if (wanted && !wanted(f)) {
-      ParallelFor(0, num_sources, [&](int64_t c) { d.sources[c]->Skip(f + d.offsets[c]); });
+      // On to the next wanted frame (or past the last), passing over the
+      // frames between in one go so that a video may seek.
+      int g = f + 1;
+      while (g <= d.last && !wanted(g)) ++g;
+      if (g <= d.last) {
+        ParallelFor(0, num_sources, [&](int64_t c) { d.sources[c]->SkipTo(g + d.offsets[c]); });
+      }
+      d.next = g;
       continue;
     }
+    ++d.next;
     frame->frame = f;
     frame->images.assign(d.sources.size(), cv::Mat());
     frame->errors.assign(d.sources.size(), std::string());

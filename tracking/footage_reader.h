@@ -91,9 +91,12 @@ class FootageReader {
   // for a bad frame: the frame comes back with the camera's error set.
   bool Next(FootageFrame* frame);
   // Reads the next frame for which wanted(frame number) is true; the frames
-  // before it are passed over (a video still decodes them, since its
-  // frames may depend on earlier ones, but does not convert them into
-  // images). For readers that need a sample of the frames (hmc calibrate).
+  // before it are passed over without being converted into images. A
+  // video decodes them (its frames may depend on earlier ones), or seeks
+  // when the next wanted frame is far enough ahead that a seek measures
+  // cheaper; a seek that lands wrong is undone by reading up to the frame,
+  // so the images are those of reading every frame. For readers that need
+  // a sample of the frames (hmc calibrate, the report's contact sheet).
   bool Next(FootageFrame* frame, const std::function<bool(int)>& wanted);
 
   // Shot-level warnings (different lengths, a truncated video, ...), and

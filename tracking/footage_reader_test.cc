@@ -101,18 +101,21 @@ TEST(FootageReaderTest, Ffv1VideoDecodesLosslesslyWithRangeAndOffset) {
 
 // Reading a sample of the frames (hmc calibrate) gives exactly those
 // frames, each as reading every frame gives it, for videos (passed-over
-// frames decoded but not converted) and image folders alike.
+// frames decoded but not converted, or sought past when far apart) and
+// image folders alike. 200 frames: samples far enough apart to seek.
 TEST(FootageReaderTest, ASampleOfFramesReadsAsReadingThemAll) {
   TempDir dir;
-  WriteVideo(dir.path() / "cam0.mkv", 0, 30);
-  WriteFolder(dir.path() / "cam1", 1, 0, 30);
+  WriteVideo(dir.path() / "cam0.mkv", 0, 200);
+  WriteFolder(dir.path() / "cam1", 1, 0, 200);
   FootageOptions options;
   options.offset1 = 1;
   FootageReader all_reader(dir.path(), {"cam0", "cam1"}, options);
   const std::vector<FootageFrame> all = ReadAll(all_reader);
-  ASSERT_EQ(all.size(), 29u);
+  ASSERT_EQ(all.size(), 199u);
   for (const std::vector<int>& sample :
-       {std::vector<int>{1, 2, 3}, std::vector<int>{5, 17, 18, 29}, std::vector<int>{29}}) {
+       {std::vector<int>{1, 2, 3}, std::vector<int>{5, 17, 18, 29}, std::vector<int>{29},
+        std::vector<int>{10, 90, 150, 151, 199}, std::vector<int>{60, 61, 130},
+        std::vector<int>{199}}) {
     FootageReader reader(dir.path(), {"cam0", "cam1"}, options);
     const auto wanted = [&sample](int f) {
       return std::find(sample.begin(), sample.end(), f) != sample.end();
