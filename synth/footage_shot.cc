@@ -301,9 +301,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
       blur_positions.reserve(blur);
       for (int j = 0; j < blur; ++j) {
         const double tau = (j / (blur - 1.0) - 0.5) * options.render.shutter;  // frames
-        const int g = std::clamp(tau < 0 ? f - 1 : f + 1, 0, num_frames - 1);
-        const double w = std::abs(tau);
-        const Eigen::VectorXd a_tau = (1 - w) * a + w * performance.activations[g];
+        const Eigen::VectorXd a_tau = ActivationsAt(performance, f + tau);
         blur_positions.push_back(model.Evaluate(a_tau));
         samples.push_back({&blur_positions.back(), HeadFromHelmetAt(perf, (f + tau) / perf.fps)});
       }

@@ -175,4 +175,21 @@ ShotPerformance MakePerformance(const FaceModel& model,
   return out;
 }
 
+Eigen::VectorXd ActivationsAt(const ShotPerformance& performance, double t) {
+  const std::vector<Eigen::VectorXd>& a = performance.activations;
+  const int n = static_cast<int>(a.size());
+  HMC_CHECK(n > 0);
+  const int base = static_cast<int>(std::floor(t));  // the segment [base, base + 1]
+  const double u = t - base;
+  const auto at = [&](int i) -> const Eigen::VectorXd& { return a[std::clamp(i, 0, n - 1)]; };
+  const Eigen::VectorXd& p0 = at(base - 1);
+  const Eigen::VectorXd& p1 = at(base);
+  const Eigen::VectorXd& p2 = at(base + 1);
+  const Eigen::VectorXd& p3 = at(base + 2);
+  const Eigen::VectorXd spline =
+      0.5 * (2 * p1 + (p2 - p0) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u * u +
+             (3 * p1 - p0 - 3 * p2 + p3) * u * u * u);
+  return spline.cwiseMax(p1.cwiseMin(p2)).cwiseMin(p1.cwiseMax(p2));
+}
+
 }  // namespace hmc

@@ -49,4 +49,16 @@ ShotPerformance MakePerformance(const FaceModel& model,
 // MakePerformance samples; used for motion blur between frames.
 Rigid3 HeadFromHelmetAt(const PerformanceOptions& options, double t_s);
 
+// The activations at time t (in frames from frame 0, between two frames
+// for motion blur): the Catmull-Rom spline through the frames around it
+// (the ends repeated), each unit kept within the two frames it lies
+// between. Smooth through the frames, unlike a straight line from frame to
+// frame: with a kink at every frame, the average over a shutter centred on
+// a frame lies 0.075 x the trajectory's second difference (per frame^2)
+// off the frame's own state for 5 samples over half a frame (on a fast jaw
+// opening a dot's image 1-2.6 px off the frame's truth), where a smooth
+// motion of acceleration a puts it a s^2 / 24 off for a shutter of s
+// frames (0.010 a for half a frame), as a real camera records it.
+Eigen::VectorXd ActivationsAt(const ShotPerformance& performance, double t);
+
 }  // namespace hmc

@@ -89,5 +89,42 @@ TEST(PerformanceTest, DeterministicBySeedWithExpressionsAndBlinks) {
   EXPECT_GE(max_active, 3);
 }
 
+// Between frames the activations follow a smooth curve through them: the
+// frames themselves exactly, a trajectory quadratic in time exactly (so a
+// shutter centred on a frame averages to its state plus a s^2 / 24, not to
+// the kinked line's 0.075 second differences), never outside the two
+// frames around, and the ends held.
+TEST(PerformanceTest, ActivationsBetweenFramesAreSmoothThroughTheFrames) {
+  ShotPerformance p;
+  for (int f = 0; f < 10; ++f) {
+    Eigen::VectorXd a(3);
+    a << 0.01 * f * f, 0.1 * f, (f >= 4 ? 0.9 : 0.1);  // quadratic, linear, a step
+    p.activations.push_back(a);
+  }
+  for (int f = 0; f < 10; ++f) {
+    EXPECT_EQ((ActivationsAt(p, f) - p.activations[f]).norm(), 0) << f;
+  }
+  for (double t : {2.25, 3.5, 5.875, 7.1}) {
+    const Eigen::VectorXd a = ActivationsAt(p, t);
+    EXPECT_NEAR(a[0], 0.01 * t * t, 1e-12) << t;
+    EXPECT_NEAR(a[1], 0.1 * t, 1e-12) << t;
+    const int f = static_cast<int>(std::floor(t));
+    EXPECT_GE(a[2], std::min(p.activations[f][2], p.activations[f + 1][2])) << t;
+    EXPECT_LE(a[2], std::max(p.activations[f][2], p.activations[f + 1][2])) << t;
+  }
+  // Five samples over half a frame around frame 5: their mean is the
+  // frame's state plus the smooth curve's own shutter term, a'' E[tau^2]/2.
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(3);
+  double tau2 = 0;
+  for (int j = 0; j < 5; ++j) {
+    const double tau = (j / 4.0 - 0.5) * 0.5;
+    mean += ActivationsAt(p, 5 + tau) / 5;
+    tau2 += tau * tau / 5;
+  }
+  EXPECT_NEAR(mean[0], 0.25 + 0.02 * tau2 / 2, 1e-12);
+  EXPECT_NEAR(mean[1], 0.5, 1e-12);
+  EXPECT_EQ(ActivationsAt(p, 9.5), p.activations[9]);  // past the last frame: held
+}
+
 }  // namespace
 }  // namespace hmc
