@@ -11,6 +11,29 @@
 
 namespace hmc {
 
+std::vector<std::pair<int, double>> FrameSolve::Weights(int k) const {
+  const BundleSolve& b = bundles[k];
+  if (b.global_share == 0.0) return b.weights;
+  if (b.global_share == 1.0 && b.weights.empty()) return global_weights;
+  // Both sorted by shape: merged.
+  std::vector<std::pair<int, double>> sum;
+  size_t i = 0, j = 0;
+  while (i < global_weights.size() || j < b.weights.size()) {
+    if (j == b.weights.size() ||
+        (i < global_weights.size() && global_weights[i].first < b.weights[j].first)) {
+      sum.emplace_back(global_weights[i].first, b.global_share * global_weights[i].second);
+      ++i;
+    } else if (i == global_weights.size() || b.weights[j].first < global_weights[i].first) {
+      sum.push_back(b.weights[j++]);
+    } else {
+      const double w = b.global_share * global_weights[i].second + b.weights[j].second;
+      if (w != 0.0) sum.emplace_back(global_weights[i].first, w);
+      ++i, ++j;
+    }
+  }
+  return sum;
+}
+
 std::vector<char> BeginFrame(
     const BundleFrame& bundles, const JawPose& jaw,
     const std::unordered_map<std::string, int>& marker_index, int num_bundles,

@@ -31,9 +31,12 @@ struct BundleSolve {
   std::vector<int> corner_shapes;    // its corners' shapes (-1: neutral)
   std::vector<std::pair<int, double>> weights;  // shape -> weight, sorted by
                                                 // shape, neutral omitted
-  bool global = false;  // its weights are the frame's global_weights (the
-                        // robust solve's global answer, held once a frame;
-                        // `weights` is then empty): read FrameSolve::Weights
+  // The robust solve's answers (read FrameSolve::Weights): the frame's
+  // global_weights enter the bundle's answer with this factor, besides
+  // `weights`: 0 for an answer of its own, 1 (weights empty) where it takes
+  // the global answer (held once a frame), in between where step 3c
+  // averages its answers over a take's frames.
+  double global_share = 0.0;
   double cost = 0.0;         // neighbour criterion of the choice (mm^2)
   double residual = 0.0;     // |output surface at s_k - observed| (mm)
 };
@@ -45,14 +48,13 @@ struct FrameSolve {
   JawPose jaw;
   std::vector<BundleSolve> bundles;  // K, in marker order
   int unknown_markers = 0;           // names not in the actor (ignored)
-  // The weights every bundle flagged `global` takes (one copy a frame: a
-  // long shot holds every frame's record).
+  // The frame's global answer, for the bundles with a global_share (one
+  // copy a frame: a long shot holds every frame's record).
   std::vector<std::pair<int, double>> global_weights;
 
-  // Bundle k's weights, wherever they are held.
-  const std::vector<std::pair<int, double>>& Weights(int k) const {
-    return bundles[k].global ? global_weights : bundles[k].weights;
-  }
+  // Bundle k's weights (shape -> weight, sorted by shape), wherever and
+  // however they are held.
+  std::vector<std::pair<int, double>> Weights(int k) const;
 };
 
 // How every solver (lgi and the baselines) starts a frame: a FrameSolve

@@ -51,6 +51,14 @@ void RobustOptions::Register(OptionFields* fields) {
               "the moving average replaces a bundle's answer where its "
               "neighbourhood cost exceeds the answer's by at most this many "
               "noise variances per bundle");
+  fields->Add("take", &take,
+              "whether the frames are a take, a continuous recording (steps "
+              "3b and 3c run only on one): auto (the markers' lag-1 "
+              "correlation is at least 0.5), yes, no");
+  fields->Add("detail_window", &detail_window,
+              "step 3c on a take: frames of the centred moving average of "
+              "each bundle's local detail, its answer less the global one "
+              "(<= 1: off)");
   fields->Add("interpolate", &interpolate,
               "after the correction (part of it: off with correct), "
               "interpolate what is left at each bundle beyond the noise's "
@@ -69,6 +77,14 @@ bool RobustOptions::Check() const {
   }
   if (temporal_window < 0 || temporal_window > 61) {
     spdlog::error("robust options: temporal_window must be in [0, 61]");
+    return false;
+  }
+  if (take != "auto" && take != "yes" && take != "no") {
+    spdlog::error("robust options: take must be auto, yes or no (not '{}')", take);
+    return false;
+  }
+  if (detail_window < 0 || detail_window > 61) {
+    spdlog::error("robust options: detail_window must be in [0, 61]");
     return false;
   }
   if (!(temporal_tolerance >= 0) || !std::isfinite(temporal_tolerance)) {
@@ -172,11 +188,10 @@ Vec3 RobustSolver::BlendVertex(const Work& work, const FrameSolve& frame,
   for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(
            nn_.weights, v);
        it; ++it) {
-    if (work.use_global[it.col()]) {
-      global_share += it.value();
-    } else {
-      add(frame.bundles[it.col()].weights, it.value());
-    }
+    // Its share of the frame's global answer, and its own weights.
+    const BundleSolve& b = frame.bundles[it.col()];
+    global_share += it.value() * b.global_share;
+    add(b.weights, it.value());
   }
   if (global_share > 0) add(work.global_nonzero, global_share);
   return x;
@@ -253,11 +268,12 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
                    nn_.weights, v);
                it; ++it) {
             for (int i = 0; i < count; ++i) {
-              if (work[i]->use_global[it.col()]) {
-                share[i] += static_cast<float>(it.value());
-                continue;
+              // Its share of the frame's global answer, and its own weights.
+              const BundleSolve& b = frames[i]->bundles[it.col()];
+              if (b.global_share != 0.0) {
+                share[i] += static_cast<float>(it.value() * b.global_share);
               }
-              for (const auto& [n, u] : frames[i]->bundles[it.col()].weights) {
+              for (const auto& [n, u] : b.weights) {
                 const float* dn = data_.Displacement(static_cast<int>(v), n);
                 if (!dn) continue;
                 const float c = static_cast<float>(it.value() * u);
@@ -314,7 +330,8 @@ std::string RobustReport::BriefReport(bool interpolate,
       "marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
       "mm for the shape prior), global ridge per shape {:.3g} (median; "
       "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
-      "choice, {} the global fit, {} the temporal average",
+      "choice, {} the global fit, {} the temporal average; {} (lag-1 "
+      "correlation {:.2f}){}",
       noise_mm, noise_estimated ? "estimated" : "given",
       selection_noise_mm, prior_noise_mm, ridge,
       ridge_min,
@@ -328,7 +345,10 @@ std::string RobustReport::BriefReport(bool interpolate,
           ? fmt::format("{} bundles interpolated beyond {:.3f} mm",
                         bundles_interpolated, threshold_mm)
           : std::string("no interpolation"),
-      bundles_local, bundles_global, bundles_smoothed);
+      bundles_local, bundles_global, bundles_smoothed, take ? "a take" : "not a take",
+      take_correlation,
+      details_smoothed > 0 ? fmt::format(", {} local details averaged in time", details_smoothed)
+                           : std::string());
 }
 
 MethodReport RobustReport::ToMethodReport(bool interpolate,
@@ -348,7 +368,10 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
                static_cast<double>(bundles_interpolated)},
               {"bundles_local", static_cast<double>(bundles_local)},
               {"bundles_global", static_cast<double>(bundles_global)},
-              {"bundles_smoothed", static_cast<double>(bundles_smoothed)}};
+              {"bundles_smoothed", static_cast<double>(bundles_smoothed)},
+              {"take_correlation", take_correlation},
+              {"take", take ? 1.0 : 0.0},
+              {"details_smoothed", static_cast<double>(details_smoothed)}};
   r.brief = BriefReport(interpolate, good_frames);
   return r;
 }
@@ -579,12 +602,66 @@ void RobustSolver::ChooseLocalOrGlobal(Sequence* seq) const {
       if (!wk.use_global[k]) continue;
       BundleSolve& b = fs.bundles[k];
       b.weights = {};  // held once, in fs.global_weights
-      b.global = true;
+      b.global_share = 1.0;
       b.simplex = -1;
       b.corner_shapes = {};
     }
   }
 
+}
+
+bool RobustSolver::IsTake(Sequence* seq) const {
+  std::vector<int> numbers;
+  std::vector<const std::vector<Vec3>*> disp;
+  for (int f : seq->good) {
+    numbers.push_back(seq->result.frames[f].frame);
+    disp.push_back(&seq->work[f].disp);
+  }
+  RobustReport& report = seq->report;
+  report.take_correlation =
+      LagOneCorrelation(numbers, disp, seq->good_observed, seq->sigma * seq->sigma);
+  report.take = options_.take == "yes" ||
+                (options_.take == "auto" && report.take_correlation >= kTakeCorrelation);
+  return report.take;
+}
+
+void RobustSolver::SmoothDetailInTime(Sequence* seq) const {
+  if (options_.detail_window <= 1 || seq->good.size() < 2) return;
+  const int K = data_.num_bundles;
+  const std::vector<int>& good = seq->good;
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> answers(good.size()),
+      detail(good.size());
+  std::vector<std::vector<char>> changed(good.size());
+  std::vector<DetailFrame> frames(good.size());
+  std::vector<int> numbers;
+  for (size_t i = 0; i < good.size(); ++i) {
+    const Work& wk = seq->work[good[i]];
+    const FrameSolve& fs = seq->result.frames[good[i]];
+    answers[i].resize(K);
+    for (int k = 0; k < K; ++k) {
+      if (!wk.use_global[k]) answers[i][k] = fs.bundles[k].weights;
+    }
+    frames[i] = {&wk.global_nonzero, &answers[i], &wk.use_global, &wk.observed, &detail[i],
+                 &changed[i]};
+    numbers.push_back(fs.frame);
+  }
+  seq->report.details_smoothed =
+      hmc::SmoothDetailInTime(numbers, options_.detail_window, &frames);
+  // The frame's global answer plus the averaged detail (FrameSolve::Weights).
+  for (size_t i = 0; i < good.size(); ++i) {
+    Work& wk = seq->work[good[i]];
+    FrameSolve& fs = seq->result.frames[good[i]];
+    fs.global_weights = wk.global_nonzero;
+    for (int k = 0; k < K; ++k) {
+      if (!changed[i][k]) continue;
+      BundleSolve& b = fs.bundles[k];
+      b.weights = std::move(detail[i][k]);
+      b.global_share = 1.0;
+      b.simplex = -1;
+      b.corner_shapes = {};
+      wk.use_global[k] = 0;
+    }
+  }
 }
 
 void RobustSolver::SmoothAnswersInTime(Sequence* seq) const {
@@ -618,7 +695,7 @@ void RobustSolver::SmoothAnswersInTime(Sequence* seq) const {
       if (!changed[i][k]) continue;
       BundleSolve& b = fs.bundles[k];
       b.weights = std::move(weights[i][k]);
-      b.global = false;
+      b.global_share = 0.0;
       b.simplex = -1;
       b.corner_shapes.clear();
       wk.use_global[k] = 0;
@@ -816,7 +893,10 @@ SolveResult RobustSolver::SolveSequence(
   EstimateNoise(&seq);                                 // step 2
   FitShapePrior(&seq);                                 // step 2b
   ChooseLocalOrGlobal(&seq);                           // step 3
-  SmoothAnswersInTime(&seq);                           // step 3b
+  if (IsTake(&seq)) {
+    SmoothAnswersInTime(&seq);                         // step 3b
+    SmoothDetailInTime(&seq);                          // step 3c
+  }
   if (options_.correct && !seq.good.empty()) {
     ChooseCorrection(&seq);  // step 5's width and smoothing
     if (options_.interpolate) InterpolateBeyondThreshold(&seq);

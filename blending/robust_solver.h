@@ -112,6 +112,12 @@ struct RobustOptions {
   double temporal_tolerance = 0.5;  // step 3b: the average may explain the
                                     // neighbourhood this many noise
                                     // variances per bundle worse
+  std::string take = "auto";  // whether the frames are a take (steps 3b
+                              // and 3c run only on one): auto (by the lag-1
+                              // correlation of the markers), yes, no
+  int detail_window = 5;      // step 3c on a take: frames of the moving
+                              // average of each bundle's local detail
+                              // (<= 1: off)
   bool interpolate = true; // then interpolate, with the natural-neighbour
                            // weights, what is left at each bundle beyond
                            // the noise's threshold (step 5)
@@ -141,6 +147,9 @@ struct RobustReport {
   int64_t bundles_global = 0;
   int64_t bundles_smoothed = 0;  // bundle-frames that took the temporal
                                  // average (step 3b)
+  double take_correlation = 0.0;  // lag-1 correlation of the markers
+  bool take = false;              // the frames were treated as a take
+  int64_t details_smoothed = 0;   // bundle-frames of step 3c
 
   // One line, as `hmc solve` logs it.
   std::string BriefReport(bool interpolate, int good_frames) const;
@@ -188,6 +197,12 @@ class RobustSolver {
   // Step 3b: each bundle's answer averaged over neighbouring frames where
   // the average still explains the frame (blending/temporal_coherence.h).
   void SmoothAnswersInTime(Sequence* seq) const;
+  // Whether the sequence is a take (options_.take; auto: by the lag-1
+  // correlation of its markers), recorded in the report.
+  bool IsTake(Sequence* seq) const;
+  // Step 3c: each bundle's local detail averaged over neighbouring frames
+  // of a take (blending/temporal_coherence.h).
+  void SmoothDetailInTime(Sequence* seq) const;
   // Step 5: the correction's width and smoothing (caches the kernel).
   void ChooseCorrection(Sequence* seq);
   // Step 5: what the correction leaves beyond the threshold, interpolated.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -103,6 +104,104 @@ int64_t SmoothAnswersInTime(const ShapeData& data,
   int64_t sum = 0;
   for (int64_t t : taken) sum += t;
   return sum;
+}
+
+double LagOneCorrelation(const std::vector<int>& frame_numbers,
+                         const std::vector<const std::vector<Vec3>*>& disp,
+                         const std::vector<const std::vector<char>*>& observed,
+                         double noise2) {
+  const int F = static_cast<int>(frame_numbers.size());
+  HMC_CHECK(static_cast<int>(disp.size()) == F && static_cast<int>(observed.size()) == F);
+  if (F < 3) return 0.0;
+  const int K = static_cast<int>(disp[0]->size());
+  // Per marker: mean and variance over the frames that observe it.
+  double var_sum = 0.0;
+  int64_t var_count = 0;
+  for (int k = 0; k < K; ++k) {
+    Vec3 mean = Vec3::Zero();
+    int n = 0;
+    for (int f = 0; f < F; ++f) {
+      if ((*observed[f])[k]) mean += (*disp[f])[k], ++n;
+    }
+    if (n < 2) continue;
+    mean /= n;
+    double ss = 0.0;
+    for (int f = 0; f < F; ++f) {
+      if ((*observed[f])[k]) ss += ((*disp[f])[k] - mean).squaredNorm();
+    }
+    var_sum += ss / (n - 1);
+    ++var_count;
+  }
+  double step_sum = 0.0;
+  int64_t step_count = 0;
+  for (int f = 0; f + 1 < F; ++f) {
+    if (frame_numbers[f + 1] - frame_numbers[f] != 1) continue;
+    for (int k = 0; k < K; ++k) {
+      if (!(*observed[f])[k] || !(*observed[f + 1])[k]) continue;
+      step_sum += ((*disp[f + 1])[k] - (*disp[f])[k]).squaredNorm();
+      ++step_count;
+    }
+  }
+  if (var_count == 0 || step_count == 0) return 0.0;
+  const double variance = var_sum / var_count - 3.0 * noise2;
+  const double step = step_sum / step_count - 6.0 * noise2;
+  if (!(variance > 0)) return 0.0;  // nothing moves beyond the noise
+  return 1.0 - step / (2.0 * variance);
+}
+
+int64_t SmoothDetailInTime(const std::vector<int>& frame_numbers, int window,
+                           std::vector<DetailFrame>* frames) {
+  const int F = static_cast<int>(frames->size());
+  HMC_CHECK(static_cast<int>(frame_numbers.size()) == F);
+  for (DetailFrame& frame : *frames) {
+    frame.detail->assign(frame.answers->size(), {});
+    frame.changed->assign(frame.answers->size(), 0);
+  }
+  if (window <= 1 || F < 2) return 0;
+  const int K = static_cast<int>((*frames)[0].answers->size());
+  const int h = window / 2;
+  std::vector<int64_t> count(K, 0);
+  ParallelFor(0, K, [&](int64_t k64) {
+    const int k = static_cast<int>(k64);
+    std::map<int, double> sum;  // shape -> weighted detail
+    for (int f = 0; f < F; ++f) {
+      const DetailFrame& frame = (*frames)[f];
+      if (!(*frame.observed)[k]) continue;
+      sum.clear();
+      double total = 0.0;
+      bool any_detail = false;
+      // The detail of bundle k in frame g: its answer less the global one.
+      auto add = [&](int g, double t) {
+        total += t;
+        const DetailFrame& other = (*frames)[g];
+        if ((*other.use_global)[k]) return;
+        any_detail = true;
+        for (const auto& [n, w] : (*other.answers)[k]) sum[n] += t * w;
+        for (const auto& [n, w] : *other.global) sum[n] -= t * w;
+      };
+      add(f, h + 1.0);
+      for (int dir : {-1, 1}) {
+        for (int s = 1; s <= h; ++s) {
+          const int g = f + dir * s;
+          if (g < 0 || g >= F) break;
+          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
+          if (!(*(*frames)[g].observed)[k]) break;
+          add(g, h + 1.0 - s);
+        }
+      }
+      if (!any_detail || total == h + 1.0) continue;  // no detail, or no other frame
+      std::vector<std::pair<int, double>>& detail = (*frame.detail)[k];
+      detail.reserve(sum.size());
+      for (const auto& [n, w] : sum) {
+        if (w != 0.0) detail.emplace_back(n, w / total);
+      }
+      (*frame.changed)[k] = 1;
+      ++count[k];
+    }
+  });
+  int64_t out = 0;
+  for (int64_t c : count) out += c;
+  return out;
 }
 
 }  // namespace hmc

@@ -1,9 +1,12 @@
 #include "blending/temporal_coherence.h"
 
+#include <cmath>
+#include <map>
 #include <random>
 
 #include <gtest/gtest.h>
 
+#include "blending/frame_solve.h"
 #include "indexing/lgi_test_actor.h"
 
 namespace hmc {
@@ -150,6 +153,130 @@ TEST_P(TemporalCoherence, AlternatingAnswersOfASmoothTakeAreAveraged) {
   EXPECT_EQ(SmoothAnswersInTime(data, Neighbours(data), off.numbers, options,
                                 &off.frames, nullptr),
             0);
+}
+
+// The lag-1 correlation tells a take from unrelated frames: independent
+// random displacements give about 0, a smooth motion near 1, and noise on
+// a smooth motion is taken out when its level is given.
+TEST_P(TemporalCoherence, LagOneCorrelationTellsATakeFromUnrelatedFrames) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> n(0.0, 1.0);
+  const int F = 60, K = 40;
+  std::vector<std::vector<Vec3>> independent(F, std::vector<Vec3>(K)), smooth = independent,
+                                                                         noisy = independent;
+  std::vector<Vec3> amplitude(K), phase(K);
+  for (int k = 0; k < K; ++k) {
+    amplitude[k] = 2.0 * Vec3(n(rng), n(rng), n(rng));
+    phase[k] = Vec3(n(rng), n(rng), n(rng));
+  }
+  const double noise = 0.3;
+  for (int f = 0; f < F; ++f) {
+    for (int k = 0; k < K; ++k) {
+      independent[f][k] = 2.0 * Vec3(n(rng), n(rng), n(rng));
+      for (int c = 0; c < 3; ++c) {
+        // A take at 30 frames/s: movements of about a second.
+        smooth[f][k][c] = amplitude[k][c] * std::sin(2 * M_PI * f / 30.0 + phase[k][c]);
+      }
+      noisy[f][k] = smooth[f][k] + noise * Vec3(n(rng), n(rng), n(rng));
+    }
+  }
+  std::vector<int> numbers(F);
+  for (int f = 0; f < F; ++f) numbers[f] = f + 1;
+  const std::vector<char> all(K, 1);
+  const std::vector<const std::vector<char>*> observed(F, &all);
+  auto rho = [&](const std::vector<std::vector<Vec3>>& d, double noise2) {
+    std::vector<const std::vector<Vec3>*> disp;
+    for (const auto& frame : d) disp.push_back(&frame);
+    return LagOneCorrelation(numbers, disp, observed, noise2);
+  };
+  EXPECT_LT(std::abs(rho(independent, 0.0)), 0.2);
+  EXPECT_GT(rho(smooth, 0.0), 0.9);
+  const double with_noise = rho(noisy, noise * noise);
+  EXPECT_GT(with_noise, 0.85);
+  EXPECT_GT(with_noise, rho(noisy, 0.0));  // the noise taken out raises it
+  EXPECT_GE(rho(smooth, 0.0), kTakeCorrelation);
+  EXPECT_LT(rho(independent, 0.0), kTakeCorrelation);
+  // Frames that are not consecutive are no step of a take.
+  std::vector<int> gaps(F);
+  for (int f = 0; f < F; ++f) gaps[f] = 2 * f;
+  std::vector<const std::vector<Vec3>*> disp;
+  for (const auto& frame : smooth) disp.push_back(&frame);
+  EXPECT_EQ(LagOneCorrelation(gaps, disp, observed, 0.0), 0.0);
+}
+
+// Step 3c: a bundle whose answer switches between lgi's and the global one
+// from frame to frame gets the frame's global answer plus the moving
+// average of its detail (answer less global); bundles without a local
+// answer in the window are left alone; a gap in the frame numbers breaks
+// the window.
+TEST(TemporalCoherenceDetail, SwitchingDetailIsAveragedAroundTheGlobalAnswer) {
+  const int F = 9, K = 3;
+  std::vector<std::vector<std::pair<int, double>>> global(F);
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> answers(
+      F, std::vector<std::vector<std::pair<int, double>>>(K)),
+      detail(F);
+  std::vector<std::vector<char>> use_global(F, std::vector<char>(K, 1)), changed(F);
+  const std::vector<char> observed(K, 1);
+  std::vector<int> numbers;
+  for (int f = 0; f < F; ++f) {
+    global[f] = {{0, 0.1 * f}, {1, 0.5}};
+    if (f % 2 == 0) {  // bundle 0 takes lgi's answer in even frames
+      answers[f][0] = {{0, 0.1 * f + 0.2}, {2, 0.3}};
+      use_global[f][0] = 0;
+    }
+    numbers.push_back(f < 7 ? f : f + 5);  // frames 7, 8 after a gap
+  }
+  std::vector<DetailFrame> frames(F);
+  for (int f = 0; f < F; ++f) {
+    frames[f] = {&global[f], &answers[f], &use_global[f], &observed, &detail[f], &changed[f]};
+  }
+  const int64_t count = SmoothDetailInTime(numbers, 5, &frames);
+  // The detail of an even frame: +0.2 on shape 0, -0.5 on shape 1 (lgi's
+  // answer holds none of it), +0.3 on shape 2.
+  auto expect_detail = [&](int f, double share) {
+    ASSERT_TRUE(changed[f][0]) << f;
+    std::map<int, double> d(detail[f][0].begin(), detail[f][0].end());
+    ASSERT_EQ(d.size(), 3u) << f;
+    EXPECT_NEAR(d[0], share * 0.2, 1e-12) << f;
+    EXPECT_NEAR(d[1], -share * 0.5, 1e-12) << f;
+    EXPECT_NEAR(d[2], share * 0.3, 1e-12) << f;
+  };
+  // Frame 3 (odd, global): the detail of frames 2 and 4, weight 2 each of
+  // 1 2 3 2 1 = 9. Frame 4 (even): its own 3/9, frames 2 and 6 1/9 each.
+  expect_detail(3, 4.0 / 9);
+  expect_detail(4, 5.0 / 9);
+  // Frame 8 follows a gap: only frame 7 (odd: global) is in its window,
+  // so it keeps 3 / (3 + 2) of its own detail.
+  expect_detail(8, 3.0 / 5);
+  // The bundles that never leave the global answer are left alone.
+  for (int f = 0; f < F; ++f) {
+    EXPECT_FALSE(changed[f][1]);
+    EXPECT_TRUE(detail[f][2].empty());
+  }
+  EXPECT_EQ(count, F);  // bundle 0 in every frame
+  // Off: nothing changes.
+  EXPECT_EQ(SmoothDetailInTime(numbers, 1, &frames), 0);
+  for (int f = 0; f < F; ++f) EXPECT_FALSE(changed[f][0]);
+}
+
+// FrameSolve::Weights: a bundle's answer whichever way it is held.
+TEST(TemporalCoherenceDetail, FrameWeightsAddTheShareOfTheGlobalAnswer) {
+  FrameSolve fs;
+  fs.bundles.resize(3);
+  fs.global_weights = {{0, 0.5}, {2, 0.25}};
+  fs.bundles[0].weights = {{1, 1.0}};
+  fs.bundles[1].global_share = 1.0;
+  fs.bundles[2].global_share = 0.4;
+  fs.bundles[2].weights = {{1, 0.1}, {2, -0.1}, {3, 0.2}};
+  using W = std::vector<std::pair<int, double>>;
+  EXPECT_EQ(fs.Weights(0), (W{{1, 1.0}}));
+  EXPECT_EQ(fs.Weights(1), fs.global_weights);
+  const W mixed = fs.Weights(2);  // shape 2: 0.4 * 0.25 - 0.1 cancels
+  ASSERT_EQ(mixed.size(), 3u);
+  EXPECT_EQ(mixed[0].first, 0);
+  EXPECT_NEAR(mixed[0].second, 0.2, 1e-15);
+  EXPECT_EQ(mixed[1], (std::pair<int, double>{1, 0.1}));
+  EXPECT_EQ(mixed[2], (std::pair<int, double>{3, 0.2}));
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, TemporalCoherence, ::testing::Values(1, 2, 3));

@@ -153,13 +153,15 @@ std::string ResultsMarkdown(const std::string& actor_name, int seed,
       "local: share of the observed bundles (all frames) that took the "
       "local (lgi) answer; local gain: how much lower robust's face mean "
       "is than robust-global's (robust without the local data) on the same "
-      "material, in % of robust-global's.\n\n",
+      "material, in % of robust-global's. take: the lag-1 correlation of "
+      "the markers, and whether robust treated the frames as a take (>= "
+      "0.5: the steps that average in time run).\n\n",
       actor_name, seed);
   md +=
       "| material | noise (mm) | method | face mean | face rms | face p95 | "
       "face max | all mean | detail | bundle | flicker | local | local gain "
-      "| ms/frame | bad |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "| take | ms/frame | bad |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ExperimentRow& r : rows) {
     const SequenceMetrics& m = r.metrics;
     const std::string local =
@@ -179,12 +181,16 @@ std::string ResultsMarkdown(const std::string& actor_name, int seed,
         r.kind == "dataset" || m.flicker_face.frames_used == 0
             ? "n/a"
             : fmt::format("{:.4f}", m.flicker_face.mean);
+    const std::string take =
+        r.take_correlation < -1
+            ? ""
+            : fmt::format("{:.2f} {}", r.take_correlation, r.take ? "yes" : "no");
     md += fmt::format(
         "| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {:.3f} | {:.4f} | "
-        "{:.5f} | {:.2e} | {} | {} | {} | {:.1f} | {} |\n",
+        "{:.5f} | {:.2e} | {} | {} | {} | {} | {:.1f} | {} |\n",
         r.kind, NoiseLabel(r.noise_mm), r.method, m.face.mean, m.face.rms,
         m.face.p95, m.face.max, m.all.mean, m.detail_face, m.bundle.mean,
-        flicker, local, gain, r.solve_ms_per_frame, r.bad_frames);
+        flicker, local, gain, take, r.solve_ms_per_frame, r.bad_frames);
   }
   md += fmt::format("\nTotal time: {:.1f} s.\n", seconds);
   return md;
@@ -328,6 +334,8 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
           for (const auto& [name, value] : result.report.values) {
             if (name == "bundles_local") local = value;
             if (name == "bundles_global") global = value;
+            if (name == "take_correlation") row.take_correlation = value;
+            if (name == "take") row.take = value != 0;
           }
           if (local >= 0 && global >= 0 && local + global > 0) {
             row.local_share = local / (local + global);
@@ -388,6 +396,10 @@ ExperimentOutput RunExperiment(const ExperimentInput& input,
          {"bad_frames", r.bad_frames},
          {"solve_ms_per_frame", r.solve_ms_per_frame}});
     if (r.local_share >= 0) table.back()["local_share"] = r.local_share;
+    if (r.take_correlation >= -1) {
+      table.back()["take_correlation"] = r.take_correlation;
+      table.back()["take"] = r.take;
+    }
     table.back().update(PooledMetricsJson(m));
   }
   const nlohmann::json report = {

@@ -77,6 +77,10 @@ struct ExperimentRow {
   // The share of observed bundle-frames that took the local (lgi) answer,
   // from the method's report (robust); < 0: the method has none.
   double local_share = -1;
+  // The lag-1 correlation of the material's markers and whether the method
+  // treated its frames as a take (robust); correlation < -1: none.
+  double take_correlation = -2;
+  bool take = false;
   SequenceMetrics metrics;  // without per_frame
 };
 
