@@ -15,8 +15,8 @@ namespace hmc {
 // The global fit's ridge per shape, s^2 / tau_n^2: the Gaussian prior
 // w_n ~ N(0, tau_n^2) whose variances maximise the evidence (marginal
 // likelihood) of the sequence's frames, d = B w + noise of variance s^2 per
-// coordinate (empirical Bayes; bounds ignored). At most 32 frames, evenly
-// spaced.
+// coordinate (empirical Bayes; bounds ignored). At most 256 frames, evenly
+// spaced, of at most 32 sets of observed markers (a factorisation each).
 //   1. One variance for every shape: in the eigenbasis of the normal matrix
 //      H = V diag(s) V^T, c = V^T B^T d has independent coordinates
 //      c_i ~ N(0, s^2 s_i + tau^2 s_i^2); tau^2 by a log-spaced search.
