@@ -55,6 +55,9 @@ void RobustOptions::Register(OptionFields* fields) {
               "whether the frames are a take, a continuous recording (steps "
               "3b and 3c run only on one): auto (the markers' lag-1 "
               "correlation is at least 0.5), yes, no");
+  fields->Add("correction_window", &correction_window,
+              "step 5 on a take: frames of the centred moving average of "
+              "the residuals the correction is fitted to (<= 1: off)");
   fields->Add("detail_window", &detail_window,
               "step 3c on a take: frames of the centred moving average of "
               "each bundle's local detail, its answer less the global one "
@@ -81,6 +84,10 @@ bool RobustOptions::Check() const {
   }
   if (take != "auto" && take != "yes" && take != "no") {
     spdlog::error("robust options: take must be auto, yes or no (not '{}')", take);
+    return false;
+  }
+  if (correction_window < 0 || correction_window > 61) {
+    spdlog::error("robust options: correction_window must be in [0, 61]");
     return false;
   }
   if (detail_window < 0 || detail_window > 61) {
@@ -751,26 +758,57 @@ void RobustSolver::ChooseCorrection(Sequence* seq) {
         wk.residual[k] = r;
       }
     }
-    // Only the residual the noise does not explain: each bundle's is
-    // shrunk by its neighbourhood's energy against the noise's,
-    // max(0, 1 - 3 sigma^2 m / sum |r_j|^2) (positive-part James-Stein).
+  });
+  // On a take, the residuals averaged over neighbouring frames first
+  // (options_.correction_window): the noise in them drops to a share q of
+  // its variance, a held-out expression's smooth deformation stays; the
+  // per-frame rest is the interpolation's (step 5).
+  std::vector<std::vector<Vec3>> source(good.size());
+  std::vector<std::vector<double>> q(good.size());
+  double q_floor = 1.0;  // q of a whole window
+  if (report.take && options_.correction_window > 1) {
+    std::vector<int> numbers;
+    for (int f : good) numbers.push_back(result.frames[f].frame);
+    std::vector<std::vector<Vec3>> raw(good.size());
+    for (size_t i = 0; i < good.size(); ++i) raw[i] = work[good[i]].residual;
+    AverageInTake(numbers, good_observed, raw, options_.correction_window, &source, &q);
+    const int h = options_.correction_window / 2;
+    double total = 0, squares = 0;
+    for (int s = -h; s <= h; ++s) total += h + 1.0 - std::abs(s), squares += std::pow(h + 1.0 - std::abs(s), 2);
+    q_floor = squares / (total * total);
+  } else {
+    for (size_t i = 0; i < good.size(); ++i) {
+      source[i] = work[good[i]].residual;
+      q[i].assign(K, 1.0);
+    }
+  }
+  // Only the residual the noise does not explain: each bundle's is
+  // shrunk by its neighbourhood's energy against the noise's,
+  // max(0, 1 - 3 sigma^2 sum_j q_j / sum |r_j|^2) (positive-part
+  // James-Stein; q_j = 1 without the average).
+  ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
+    const Work& wk = work[good[i]];
     residuals[i].assign(K, Vec3::Zero());
     for (int k = 0; k < K; ++k) {
       if (!wk.observed[k]) continue;
       int m = 0;
-      const double energy = NeighbourhoodEnergy(wk.residual, wk, k, &m);
-      const double noise = 3.0 * sel_sigma2 * m;
+      const double energy = NeighbourhoodEnergy(source[i], wk, k, &m);
+      double share = q[i][k];
+      for (int j : lgi_.Neighbours(k)) {
+        if (wk.observed[j]) share += q[i][j];
+      }
+      const double noise = 3.0 * sel_sigma2 * share;
       const double keep =
           energy > noise ? 1.0 - noise / energy : 0.0;
-      residuals[i][k] = keep * wk.residual[k];
+      residuals[i][k] = keep * source[i][k];
     }
   });
   KernelFit fit;
-  double noise = options_.noise_mm;
+  double noise = options_.noise_mm < 0 ? -1.0 : options_.noise_mm * std::sqrt(q_floor);
   if (noise < 0) {
     ChooseCorrectionSmoothing(smoothers_, &bases, good_observed, residuals, false,
                     0.0, &fit);
-    noise = std::sqrt(std::max(sel_sigma2, fit.NoiseVariance()));
+    noise = std::sqrt(std::max(sel_sigma2 * q_floor, fit.NoiseVariance()));
   }
   std::tie(width_index, lambda) = ChooseCorrectionSmoothing(
       smoothers_, &bases, good_observed, residuals, true, noise, &fit);

@@ -115,6 +115,9 @@ struct RobustOptions {
   std::string take = "auto";  // whether the frames are a take (steps 3b
                               // and 3c run only on one): auto (by the lag-1
                               // correlation of the markers), yes, no
+  int correction_window = 5;  // step 5 on a take: frames over which the
+                              // residuals are averaged before the
+                              // correction's fit (<= 1: off)
   int detail_window = 5;      // step 3c on a take: frames of the moving
                               // average of each bundle's local detail
                               // (<= 1: off)

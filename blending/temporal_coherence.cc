@@ -204,4 +204,42 @@ int64_t SmoothDetailInTime(const std::vector<int>& frame_numbers, int window,
   return out;
 }
 
+void AverageInTake(const std::vector<int>& frame_numbers,
+                   const std::vector<const std::vector<char>*>& observed,
+                   const std::vector<std::vector<Vec3>>& values, int window,
+                   std::vector<std::vector<Vec3>>* averaged,
+                   std::vector<std::vector<double>>* variance_factor) {
+  const int F = static_cast<int>(values.size());
+  HMC_CHECK(static_cast<int>(frame_numbers.size()) == F &&
+            static_cast<int>(observed.size()) == F);
+  const int h = std::max(window, 1) / 2;
+  averaged->assign(F, {});
+  variance_factor->assign(F, {});
+  ParallelFor(0, F, [&](int64_t f64) {
+    const int f = static_cast<int>(f64);
+    const int K = static_cast<int>(values[f].size());
+    (*averaged)[f].assign(K, Vec3::Zero());
+    (*variance_factor)[f].assign(K, 1.0);
+    for (int k = 0; k < K; ++k) {
+      if (!(*observed[f])[k]) continue;
+      Vec3 sum = (h + 1.0) * values[f][k];
+      double total = h + 1.0, squares = (h + 1.0) * (h + 1.0);
+      for (int dir : {-1, 1}) {
+        for (int s = 1; s <= h; ++s) {
+          const int g = f + dir * s;
+          if (g < 0 || g >= F) break;
+          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
+          if (!(*observed[g])[k]) break;
+          const double t = h + 1.0 - s;
+          sum += t * values[g][k];
+          total += t;
+          squares += t * t;
+        }
+      }
+      (*averaged)[f][k] = sum / total;
+      (*variance_factor)[f][k] = squares / (total * total);
+    }
+  });
+}
+
 }  // namespace hmc

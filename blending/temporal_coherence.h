@@ -115,4 +115,16 @@ struct DetailFrame {
 int64_t SmoothDetailInTime(const std::vector<int>& frame_numbers, int window,
                            std::vector<DetailFrame>* frames);
 
+// Per bundle, the triangular moving average over `window` frames of a
+// take (those consecutive with the frame that observe the bundle) of a
+// per-bundle vector, e.g. the blend's residual at the markers (step 5 on a
+// take: noise averages out, a held-out expression's smooth motion stays).
+// *variance_factor (F x K) receives sum t^2 / (sum t)^2, the share of
+// independent noise's variance the average keeps (19/81 for 5 frames).
+void AverageInTake(const std::vector<int>& frame_numbers,
+                   const std::vector<const std::vector<char>*>& observed,
+                   const std::vector<std::vector<Vec3>>& values, int window,
+                   std::vector<std::vector<Vec3>>* averaged,
+                   std::vector<std::vector<double>>* variance_factor);
+
 }  // namespace hmc

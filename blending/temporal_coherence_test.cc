@@ -259,6 +259,57 @@ TEST(TemporalCoherenceDetail, SwitchingDetailIsAveragedAroundTheGlobalAnswer) {
   for (int f = 0; f < F; ++f) EXPECT_FALSE(changed[f][0]);
 }
 
+// The residuals of a take averaged per bundle over 5 frames: exact for a
+// residual linear in time (a smooth motion), the variance of independent
+// noise down to 19/81 inside the take (sum t^2 / (sum t)^2) and by less at
+// its ends and beside a gap or an unobserved frame, where the window is
+// cut.
+TEST_P(TemporalCoherence, ResidualsOfATakeAverageTheNoiseAndKeepASmoothMotion) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> n(0.0, 1.0);
+  const int F = 400, K = 4;
+  std::vector<int> numbers;
+  std::vector<std::vector<char>> seen(F, std::vector<char>(K, 1));
+  std::vector<std::vector<Vec3>> linear(F, std::vector<Vec3>(K)), noise = linear;
+  for (int f = 0; f < F; ++f) {
+    numbers.push_back(f < 200 ? f : f + 3);  // a gap after frame 199
+    for (int k = 0; k < K; ++k) {
+      linear[f][k] = Vec3(0.1 * f, -0.05 * f + k, 2.0);
+      noise[f][k] = Vec3(n(rng), n(rng), n(rng));
+    }
+  }
+  seen[50][2] = 0;  // bundle 2 unobserved in frame 50
+  std::vector<const std::vector<char>*> observed;
+  for (const auto& o : seen) observed.push_back(&o);
+  std::vector<std::vector<Vec3>> averaged;
+  std::vector<std::vector<double>> q;
+  AverageInTake(numbers, observed, linear, 5, &averaged, &q);
+  for (int f : {2, 100, 197, 202, 300}) {
+    EXPECT_LT((averaged[f][0] - linear[f][0]).norm(), 1e-12) << f;
+    EXPECT_NEAR(q[f][0], 19.0 / 81, 1e-12) << f;
+  }
+  // At the ends of the take and beside the gap: cut windows, more variance
+  // kept (frame 0: weights 3 2 1, 14/36).
+  EXPECT_NEAR(q[0][0], 14.0 / 36, 1e-12);
+  EXPECT_NEAR(q[199][0], 14.0 / 36, 1e-12);
+  EXPECT_NEAR(q[200][0], 14.0 / 36, 1e-12);
+  EXPECT_GT(q[51][2], 19.0 / 81);  // frame 50 left out of bundle 2's window
+  EXPECT_NEAR(q[51][1], 19.0 / 81, 1e-12);
+  // Independent noise: the averaged variance as q says (inside the take).
+  AverageInTake(numbers, observed, noise, 5, &averaged, &q);
+  double sum2 = 0;
+  int count = 0;
+  for (int f = 10; f < 190; ++f) {
+    sum2 += averaged[f][0].squaredNorm() / 3;
+    ++count;
+  }
+  EXPECT_NEAR(sum2 / count, 19.0 / 81, 0.05);  // ~0.235; the mean of 180 correlated values
+  // Off (window 1): the values themselves.
+  AverageInTake(numbers, observed, noise, 1, &averaged, &q);
+  EXPECT_EQ(averaged[7][3], noise[7][3]);
+  EXPECT_EQ(q[7][3], 1.0);
+}
+
 // FrameSolve::Weights: a bundle's answer whichever way it is held.
 TEST(TemporalCoherenceDetail, FrameWeightsAddTheShareOfTheGlobalAnswer) {
   FrameSolve fs;
