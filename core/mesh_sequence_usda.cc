@@ -14,8 +14,10 @@
 #include <iterator>
 #include <limits>
 #include <ostream>
+#include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -33,10 +35,31 @@ namespace hmc::sequence_io {
 // USD's point3f and texCoord2f hold float32: values are rounded to float32
 // and written as the shortest text that reads back as that float (at most 9
 // digits), or with fewer digits if `precision` asks for less.
-std::string FormatFloat(double x, int precision) {
+void AppendFloat(std::string* text, double x, int precision) {
   const float value = static_cast<float>(x);
-  if (precision >= 9) return fmt::format("{}", value);
-  return fmt::format("{:.{}g}", value, precision);
+  if (precision >= 9) {
+    fmt::format_to(std::back_inserter(*text), "{}", value);
+  } else {
+    fmt::format_to(std::back_inserter(*text), "{:.{}g}", value, precision);
+  }
+}
+
+// One frame's `points` time sample, "        F: [(x, y, z), ...],\n".
+std::string PointsSample(int frame, const MatX3d& X, int precision) {
+  std::string text;
+  text.reserve(static_cast<size_t>(X.rows()) * 36 + 32);
+  fmt::format_to(std::back_inserter(text), "        {}: [", frame);
+  for (int v = 0; v < X.rows(); ++v) {
+    text += v ? ", (" : "(";
+    AppendFloat(&text, X(v, 0), precision);
+    text += ", ";
+    AppendFloat(&text, X(v, 1), precision);
+    text += ", ";
+    AppendFloat(&text, X(v, 2), precision);
+    text += ')';
+  }
+  text += "],\n";
+  return text;
 }
 
 void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
@@ -94,26 +117,30 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
     }
     text += "]\n    uniform token orientation = \"rightHanded\"\n";
     text += "    point3f[] points.timeSamples = {\n";
-    for (size_t f = 0; f < seq.frames.size(); ++f) {
-      const MatX3d& X = seq.frames[f];
-      fmt::format_to(std::back_inserter(text), "        {}: [",
-                     first + static_cast<int>(f));
-      for (int v = 0; v < X.rows(); ++v) {
-        fmt::format_to(std::back_inserter(text), "{}({}, {}, {})",
-                       v ? ", " : "", FormatFloat(X(v, 0), precision),
-                       FormatFloat(X(v, 1), precision),
-                       FormatFloat(X(v, 2), precision));
-        if (text.size() > (1 << 20)) flush();
+    flush();
+    // The frames' text formatted side by side, a batch at a time (bounded
+    // memory), written in order: the same bytes as one after the other.
+    constexpr int64_t kBatch = 16;
+    const int64_t F = static_cast<int64_t>(seq.frames.size());
+    std::vector<std::string> batch(kBatch);
+    for (int64_t begin = 0; begin < F; begin += kBatch) {
+      const int64_t end = std::min(F, begin + kBatch);
+      ParallelFor(begin, end, [&](int64_t f) {
+        batch[f - begin] = PointsSample(first + static_cast<int>(f), seq.frames[f], precision);
+      });
+      for (int64_t f = begin; f < end; ++f) {
+        out.write(batch[f - begin].data(), static_cast<std::streamsize>(batch[f - begin].size()));
       }
-      text += "],\n";
     }
     text += "    }\n";
     if (mesh.HasUVs()) {
       text += "    texCoord2f[] primvars:st = [";
       for (int i = 0; i < mesh.UV.rows(); ++i) {
-        fmt::format_to(std::back_inserter(text), "{}({}, {})", i ? ", " : "",
-                       FormatFloat(mesh.UV(i, 0), precision),
-                       FormatFloat(mesh.UV(i, 1), precision));
+        text += i ? ", (" : "(";
+        AppendFloat(&text, mesh.UV(i, 0), precision);
+        text += ", ";
+        AppendFloat(&text, mesh.UV(i, 1), precision);
+        text += ')';
       }
       text += "] (\n        interpolation = \"faceVarying\"\n    )\n";
       text += "    int[] primvars:st:indices = [";

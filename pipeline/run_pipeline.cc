@@ -154,6 +154,9 @@ class Pipeline {
   }
   std::vector<std::string> FootageFlags() const;
   void AddFootageInputs(StageKey* key) const;
+  // `--fps F` for the solve and the exports: the footage's frame rate
+  // (none for an image sequence, which declares none).
+  std::vector<std::string> FrameRateFlags() const;
 
   RunInput input_;
   RunOptions options_;
@@ -182,6 +185,15 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
     key->AddInput("footage." + reader.camera_name(c), reader.source(c));
   }
   key->AddInputText("frames", options_.frames);
+}
+
+std::vector<std::string> Pipeline::FrameRateFlags() const {
+  const HelmetRig rig = ReadCalibration(input_.calibration);
+  std::vector<std::string> names;
+  for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
+  const double fps = FootageReader(input_.shot, names, FootageOptions()).fps();
+  if (!(fps > 0)) return {};  // an image sequence: the commands' default
+  return {"--fps", fmt::format("{}", fps)};
 }
 
 nlohmann::json Pipeline::RunCommand(const std::string& stage, std::vector<std::string> args,
@@ -291,12 +303,18 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
                                        (dir / "diagnostics.json").string(), "--topology",
                                        (dir / "neutral.obj").string()};
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      // The footage's frame rate, so that the exports play at the shot's
+      // speed (a 60 fps helmet camera's mesh is not written at 30).
+      const std::vector<std::string> fps = FrameRateFlags();
+      args.insert(args.end(), fps.begin(), fps.end());
       nlohmann::json report = RunCommand("solve", args, dir);
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
-        RunCommand("solve", {"convert", (dir / "mesh.pc2").string(), target.string(), "--topology",
-                             (dir / "neutral.obj").string()},
-                   dir);
+        std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
+                                            target.string(), "--topology",
+                                            (dir / "neutral.obj").string()};
+        convert.insert(convert.end(), fps.begin(), fps.end());
+        RunCommand("solve", convert, dir);
       }
       return report;
     };

@@ -29,6 +29,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr int kFrames = 6;
+constexpr int kFps = 24;  // not the exports' default (30): the shot's rate must reach them
 
 // One small actor and one short shot for all tests of this file (rendering
 // is the expensive part).
@@ -45,8 +46,8 @@ class RunTest : public ::testing::Test {
               0);
     const CliResult shot =
         RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames {} --seed 5 "
-                           "--contact_frames 0",
-                           (d / "actor").string(), (d / "shot").string(), kFrames),
+                           "--contact_frames 0 --fps {}",
+                           (d / "actor").string(), (d / "shot").string(), kFrames, kFps),
                d);
     ASSERT_EQ(shot.exit_code, 0) << shot.err;
   }
@@ -93,6 +94,9 @@ TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
   EXPECT_EQ(mesh.frames.size(), static_cast<size_t>(kFrames));
   EXPECT_TRUE(fs::is_regular_file(work / "solve" / "neutral.obj"));
   EXPECT_TRUE(fs::is_regular_file(work / "solve" / "mesh.usda"));
+  // The export plays at the footage's frame rate.
+  EXPECT_NE(ReadFile(work / "solve" / "mesh.usda").find(fmt::format("framesPerSecond = {}\n", kFps)),
+            std::string::npos);
   EXPECT_TRUE(fs::is_regular_file(work / "report" / "report.html"));
   // Against the ground truth (the report's accuracy.json). Bounds: several
   // times what the default shot measures (docs/pipeline.md), so they catch

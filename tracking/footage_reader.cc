@@ -122,6 +122,8 @@ class CameraSource {
   // ended early: truncated, or without a declared length).
   virtual bool EndedBefore(int frame) const { return frame > last(); }
   virtual std::vector<std::string> warnings() const { return {}; }
+  // Frames per second as the source declares it (0: unknown, an image folder).
+  virtual double fps() const { return 0; }
 };
 
 class ImageFolderSource : public CameraSource {
@@ -220,6 +222,7 @@ class VideoSource : public CameraSource {
   int last() const override {
     return std::max(declared_frames_ > 0 ? declared_frames_ : INT_MAX - 1, pending_frame_);
   }
+  double fps() const override { return fps_; }
   cv::Mat Read(int frame, std::string* error) override {
     while (!ended_ && pending_frame_ < frame) Advance();
     if (!ended_ && pending_frame_ == frame) {
@@ -496,6 +499,7 @@ cv::Size FootageReader::image_size(int camera) const { return impl_->sources[cam
 int FootageReader::first_frame() const { return impl_->first; }
 int FootageReader::last_frame() const { return impl_->last; }
 const std::vector<std::string>& FootageReader::warnings() const { return impl_->warnings; }
+double FootageReader::fps() const { return impl_->sources[0]->fps(); }
 
 bool FootageReader::Next(FootageFrame* frame) { return Next(frame, nullptr); }
 

@@ -86,6 +86,9 @@ class FootageReader {
   int first_frame() const;
   int last_frame() const;
   int num_frames() const { return last_frame() - first_frame() + 1; }
+  // cam0's frame rate as its video declares it (frames per second); 0 when
+  // unknown (an image folder).
+  double fps() const;
 
   // Reads the next frame in order; false after the last one. Never throws
   // for a bad frame: the frame comes back with the camera's error set.
