@@ -354,8 +354,13 @@ std::string RobustReport::BriefReport(bool interpolate,
           : std::string("no interpolation"),
       bundles_local, bundles_global, bundles_smoothed, take ? "a take" : "not a take",
       take_correlation,
-      details_smoothed > 0 ? fmt::format(", {} local details averaged in time", details_smoothed)
-                           : std::string());
+      (details_smoothed > 0 ? fmt::format(", {} local details averaged in time", details_smoothed)
+                            : std::string()) +
+          (correction_noise_kept < 1.0
+               ? fmt::format(", the correction fitted to residuals averaged in time ({:.0f} % "
+                             "of their noise variance kept)",
+                             100 * correction_noise_kept)
+               : std::string()));
 }
 
 MethodReport RobustReport::ToMethodReport(bool interpolate,
@@ -378,7 +383,8 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
               {"bundles_smoothed", static_cast<double>(bundles_smoothed)},
               {"take_correlation", take_correlation},
               {"take", take ? 1.0 : 0.0},
-              {"details_smoothed", static_cast<double>(details_smoothed)}};
+              {"details_smoothed", static_cast<double>(details_smoothed)},
+              {"correction_noise_kept", correction_noise_kept}};
   r.brief = BriefReport(interpolate, good_frames);
   return r;
 }
@@ -775,7 +781,25 @@ void RobustSolver::ChooseCorrection(Sequence* seq) {
     const int h = options_.correction_window / 2;
     double total = 0, squares = 0;
     for (int s = -h; s <= h; ++s) total += h + 1.0 - std::abs(s), squares += std::pow(h + 1.0 - std::abs(s), 2);
-    q_floor = squares / (total * total);
+    const double q_independent = squares / (total * total);
+    // How much of the residuals' noise the average really removes: the
+    // generalised cross-validation noise of the averaged residuals against
+    // that of the frames' own. Independent noise keeps q_independent of
+    // its variance; an error that persists over frames (a tracked dot's
+    // centroid biased the same way for a while) keeps all of it, and the
+    // correction must not take it for signal.
+    KernelFit raw_fit, averaged_fit;
+    ChooseCorrectionSmoothing(smoothers_, &bases, good_observed, raw, false, 0.0, &raw_fit);
+    ChooseCorrectionSmoothing(smoothers_, &bases, good_observed, source, false, 0.0,
+                              &averaged_fit);
+    const double raw_noise = raw_fit.NoiseVariance();
+    q_floor = raw_noise > 0
+                  ? std::clamp(averaged_fit.NoiseVariance() / raw_noise, q_independent, 1.0)
+                  : 1.0;
+    report.correction_noise_kept = q_floor;
+    for (auto& row : q) {
+      for (double& v : row) v = std::min(1.0, v * q_floor / q_independent);
+    }
   } else {
     for (size_t i = 0; i < good.size(); ++i) {
       source[i] = work[good[i]].residual;

@@ -153,6 +153,9 @@ struct RobustReport {
   double take_correlation = 0.0;  // lag-1 correlation of the markers
   bool take = false;              // the frames were treated as a take
   int64_t details_smoothed = 0;   // bundle-frames of step 3c
+  double correction_noise_kept = 1.0;  // step 5 on a take: the share of the
+                                       // residuals' noise variance their
+                                       // average keeps (measured)
 
   // One line, as `hmc solve` logs it.
   std::string BriefReport(bool interpolate, int good_frames) const;

@@ -146,7 +146,9 @@ double LagOneCorrelation(const std::vector<int>& frame_numbers,
   const double variance = var_sum / var_count - 3.0 * noise2;
   const double step = step_sum / step_count - 6.0 * noise2;
   if (!(variance > 0)) return 0.0;  // nothing moves beyond the noise
-  return 1.0 - step / (2.0 * variance);
+  // Clamped: with the noise taken out, an estimate may pass 1 (a noise
+  // level estimated high) or -1.
+  return std::clamp(1.0 - step / (2.0 * variance), -1.0, 1.0);
 }
 
 int64_t SmoothDetailInTime(const std::vector<int>& frame_numbers, int window,
