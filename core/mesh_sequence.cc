@@ -66,18 +66,26 @@ MeshSequence ReadMeshSequence(const fs::path& path,
   if (options.fps < 0 || !std::isfinite(options.fps)) {
     throw InputError(fmt::format("frame rate {} must be positive", options.fps));
   }
+  MeshSequence seq;
   switch (SequenceFormatFromPath(path)) {
     case SequenceFormat::kPc2:
-      return sequence_io::ReadPc2(path, options);
+      return sequence_io::ReadPc2(path, options);  // skips unwanted frames itself
     case SequenceFormat::kMdd:
-      return sequence_io::ReadMdd(path, options);
+      seq = sequence_io::ReadMdd(path, options);
+      break;
     case SequenceFormat::kUsda:
-      return sequence_io::ReadUsda(path, options);
+      seq = sequence_io::ReadUsda(path, options);
+      break;
     case SequenceFormat::kObjFolder:
-      return sequence_io::ReadObjFolder(path, options);
+      seq = sequence_io::ReadObjFolder(path, options);
+      break;
   }
-  HMC_CHECK(false);
-  return {};
+  if (options.wanted) {
+    for (size_t f = 0; f < seq.frames.size(); ++f) {
+      if (!options.wanted(seq.start_frame + static_cast<int>(f))) seq.frames[f] = MatX3d();
+    }
+  }
+  return seq;
 }
 
 void WriteMeshSequence(const fs::path& path, const MeshSequence& seq,

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -46,6 +47,10 @@ struct MeshSequenceReadOptions {
   // Number of the first frame, overriding the file's (.pc2 start, .mdd first
   // time, .usda time codes, OBJ file names).
   std::optional<int> start_frame;
+  // Frame number -> whether to load its points (null: every frame). A
+  // frame not wanted comes back empty (0 x 3): a long sequence's few
+  // frames without holding the rest (a .pc2 does not read them at all).
+  std::function<bool(int)> wanted;
 };
 MeshSequence ReadMeshSequence(const std::filesystem::path& path,
                               const MeshSequenceReadOptions& options);

@@ -68,6 +68,11 @@ class BinaryFile {
       ThrowInputError(path_, 0, "read failed (file shrank while reading?)");
     }
   }
+  // Passes over `bytes` (the size was checked against the header).
+  void Skip(int64_t bytes) {
+    in_.seekg(bytes, std::ios::cur);
+    if (!in_) ThrowInputError(path_, 0, "seek failed (file shrank while reading?)");
+  }
 
   // Reads num_points x 3 float32, checking each value is finite.
   MatX3d ReadFrame(int64_t num_points, bool big_endian, int frame_index) {

@@ -119,6 +119,11 @@ MeshSequence ReadPc2(const fs::path& path,
   seq.fps = options.fps > 0 ? options.fps : kDefaultFps;
   seq.frames.reserve(num_samples);
   for (int s = 0; s < num_samples; ++s) {
+    if (options.wanted && !options.wanted(seq.start_frame + s)) {
+      file.Skip(int64_t{num_points} * 12);
+      seq.frames.emplace_back();
+      continue;
+    }
     seq.frames.push_back(file.ReadFrame(num_points, /*big_endian=*/false, s));
   }
   if (options.topology != nullptr) seq.topology = *options.topology;

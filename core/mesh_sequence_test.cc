@@ -253,6 +253,36 @@ TEST_P(MeshSequenceSeeded, FormatsConvertIntoEachOther) {
   EXPECT_EQ(Bytes(dir / "a.pc2"), Bytes(dir / "e.pc2"));
 }
 
+// Reading a few frames of a sequence: those frames as a full read gives
+// them, the others empty, the numbering kept; in every format.
+TEST_P(MeshSequenceSeeded, WantedFramesOnlyAreRead) {
+  const fs::path dir = FreshDir("wanted_" + std::to_string(GetParam()));
+  const MeshSequence seq = RandomSequence(GetParam(), 6, true);
+  WriteMeshSequence(dir / "s.pc2", seq);
+  WriteMeshSequence(dir / "s.mdd", seq);
+  WriteMeshSequence(dir / "s.usda", seq);
+  const int a = seq.start_frame + 1, b = seq.start_frame + 4;
+  for (const char* name : {"s.pc2", "s.mdd", "s.usda"}) {
+    SCOPED_TRACE(name);
+    MeshSequenceReadOptions options;
+    options.topology = &seq.topology;
+    options.fps = seq.fps;
+    const MeshSequence all = ReadMeshSequence(dir / name, options);
+    options.wanted = [a, b](int f) { return f == a || f == b; };
+    const MeshSequence some = ReadMeshSequence(dir / name, options);
+    ASSERT_EQ(some.frames.size(), all.frames.size());
+    EXPECT_EQ(some.start_frame, all.start_frame);
+    for (size_t f = 0; f < all.frames.size(); ++f) {
+      const int number = all.start_frame + static_cast<int>(f);
+      if (number == a || number == b) {
+        EXPECT_EQ(some.frames[f], all.frames[f]) << number;
+      } else {
+        EXPECT_EQ(some.frames[f].rows(), 0) << number;
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Seeds, MeshSequenceSeeded,
                          ::testing::Values(1u, 2u, 3u, 11u, 42u));
 

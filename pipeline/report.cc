@@ -386,7 +386,18 @@ void ReportWriter::SolveSection(const Actor& actor) {
   const fs::path file = Stage("solve", "mesh.pc2");
   if (!Exists(file)) return;
   Section("Solve");
-  recon_ = ReadMeshSequence(file, &actor.neutral);
+  if (Exists(shot_ / "truth.pc2")) {
+    recon_ = ReadMeshSequence(file, &actor.neutral);  // every frame, against the truth
+  } else {
+    // Only the contact sheet's frames: a long shot's mesh is not held.
+    MeshSequenceReadOptions read;
+    read.topology = &actor.neutral;
+    read.wanted = [](int) { return false; };
+    recon_ = ReadMeshSequence(file, read);  // the frame numbers
+    const std::set<int> contact = ContactFrames();
+    read.wanted = [&contact](int f) { return contact.count(f) > 0; };
+    recon_ = ReadMeshSequence(file, read);
+  }
   const fs::path diag = Stage("solve", "diagnostics.json");
   if (Exists(diag)) {
     PlotSeries outside{"outside their data (%)", {}}, residual{"mean residual (0.01 mm)", {}};
