@@ -902,7 +902,7 @@ void RobustSolver::InterpolateBeyondThreshold(Sequence* seq) const {
 // previous good mesh.
 void RobustSolver::BlendFrames(Sequence* seq) const {
   const int F = static_cast<int>(seq->work.size()), K = data_.num_bundles;
-  const std::vector<Work>& work = seq->work;
+  std::vector<Work>& work = seq->work;
   SolveResult& result = seq->result;
   const int width_index = seq->width_index;
   const JawRig* rig = data_.jaw_rig ? &*data_.jaw_rig : nullptr;
@@ -924,7 +924,7 @@ void RobustSolver::BlendFrames(Sequence* seq) const {
     std::vector<MatX3d> blended = BlendBatch(batch_work, batch_frames, kernel);
     for (int f = begin, i = 0; f < end; ++f) {
       FrameSolve& fs = result.frames[f];
-      const Work& wk = work[f];
+      Work& wk = work[f];
       if (wk.ok) {
         result.meshes[f] = std::move(blended[i++]);
         for (int k = 0; k < K; ++k) {
@@ -937,6 +937,9 @@ void RobustSolver::BlendFrames(Sequence* seq) const {
           }
         }
       }
+      // The frame's working state is done with: released as the meshes
+      // come, so a long shot holds its meshes and records, not both.
+      wk = Work();
       s.Count(fs);
       progress.Advance();
     }
@@ -955,6 +958,9 @@ SolveResult RobustSolver::SolveSequence(
   EstimateNoise(&seq);                                 // step 2
   FitShapePrior(&seq);                                 // step 2b
   ChooseLocalOrGlobal(&seq);                           // step 3
+  // The global fit's residuals served steps 2-3 only.
+  seq.global_residual = {};
+  seq.global_loo = {};
   if (IsTake(&seq)) {
     SmoothAnswersInTime(&seq);                         // step 3b
     SmoothDetailInTime(&seq);                          // step 3c
