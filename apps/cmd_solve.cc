@@ -179,19 +179,23 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
                       {cmd.topology_file, "--topology"}});
   const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
   const Actor& actor = *loaded;
-  const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
-  if (rows.empty()) {
-    ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
-  }
-  std::vector<JawFrame> jaw_rows;
-  if (!cmd.jaw_file.empty()) {
-    jaw_rows = ReadJawCsv(cmd.jaw_file);
-  } else if (actor.jaw_rig) {
-    spdlog::warn("no --jaw given: solving with the zero jaw pose");
-  }
-  const DenseSequence input = MakeDenseSequence(
-      rows, cmd.bundles_file, cmd.jaw_file.empty() ? nullptr : &jaw_rows,
-      cmd.jaw_file, actor, cmd.options.input);
+  // The file's rows (a map per frame) live only until the dense sequence
+  // is made: a long shot does not hold them through the solve.
+  const DenseSequence input = [&] {
+    const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
+    if (rows.empty()) {
+      ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
+    }
+    std::vector<JawFrame> jaw_rows;
+    if (!cmd.jaw_file.empty()) {
+      jaw_rows = ReadJawCsv(cmd.jaw_file);
+    } else if (actor.jaw_rig) {
+      spdlog::warn("no --jaw given: solving with the zero jaw pose");
+    }
+    return MakeDenseSequence(rows, cmd.bundles_file,
+                             cmd.jaw_file.empty() ? nullptr : &jaw_rows,
+                             cmd.jaw_file, actor, cmd.options.input);
+  }();
   // A sequence with no frame to solve is an input error, not an output of
   // repeated neutrals.
   if (std::all_of(input.frame_errors.begin(), input.frame_errors.end(),

@@ -40,6 +40,10 @@ class CorrectionBases {
     }
     return found->second;
   }
+  // Frees every decomposition (a long shot has hundreds of observed sets).
+  void Clear() {
+    for (auto& per_width : bases_) per_width.clear();
+  }
 
  private:
   const std::vector<KernelSmoother>& smoothers_;

@@ -969,6 +969,7 @@ SolveResult RobustSolver::SolveSequence(
     ChooseCorrection(&seq);  // step 5's width and smoothing
     if (options_.interpolate) InterpolateBeyondThreshold(&seq);
   }
+  seq.bases.Clear();  // step 5's decompositions, before the meshes come
   seq.report.lambda = seq.lambda;
   BlendFrames(&seq);  // steps 4-6
   const int good_frames = static_cast<int>(seq.good.size());
