@@ -15,4 +15,10 @@ void KeepFreedMemoryForReuse() {
 #endif
 }
 
+void ReturnFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
 }  // namespace hmc

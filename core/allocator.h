@@ -14,4 +14,10 @@ namespace hmc {
 // and benchmarks that render shots get it; a no-op off glibc.
 void KeepFreedMemoryForReuse();
 
+// What the process freed goes back to the system now (the heap kept above
+// is for reuse within a stage): `hmc run` calls it between stages, so its
+// peak is its largest stage's, not that plus what earlier stages left
+// (docs/PERFORMANCE.md, "Footage to mesh"). A no-op off glibc.
+void ReturnFreedMemory();
+
 }  // namespace hmc

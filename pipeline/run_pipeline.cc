@@ -4,10 +4,6 @@
 #include <chrono>
 #include <system_error>
 
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
-
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
@@ -15,6 +11,7 @@
 
 #include "core/actor.h"
 #include "core/actor_cache.h"
+#include "core/allocator.h"
 #include "core/calibration.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -27,19 +24,6 @@
 namespace hmc {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-// Stages run in one process: what a stage freed goes back to the system
-// before the next starts, so the run's peak is its largest stage's, not the
-// sum of the heap each stage left fragmented (docs/pipeline.md, memory).
-void ReturnFreedMemory() {
-#if defined(__GLIBC__)
-  malloc_trim(0);
-#endif
-}
-
-}  // namespace
 
 const std::vector<std::string>& PipelineStages() {
   static const std::vector<std::string> stages = {"calibrate", "track", "triangulate", "stabilize",
