@@ -30,6 +30,26 @@ double NeighbourhoodCost(const ShapeData& data, const std::vector<int>& nbhd,
   return cost;
 }
 
+// Visits frame f with weight h + 1, then each frame g of the centred
+// window of half-width h, outwards, with the triangular weight
+// h + 1 - |g - f|, while g is consecutive with f in frame numbers and
+// observed(g): a gap or an unobserved frame ends that side of the window.
+template <typename Observed, typename Visit>
+void ForEachInWindow(const std::vector<int>& frame_numbers, int f, int h,
+                     const Observed& observed, const Visit& visit) {
+  const int F = static_cast<int>(frame_numbers.size());
+  visit(f, h + 1.0);
+  for (int dir : {-1, 1}) {
+    for (int s = 1; s <= h; ++s) {
+      const int g = f + dir * s;
+      if (g < 0 || g >= F) break;
+      if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
+      if (!observed(g)) break;
+      visit(g, h + 1.0 - s);
+    }
+  }
+}
+
 }  // namespace
 
 int64_t SmoothAnswersInTime(const ShapeData& data,
@@ -73,16 +93,8 @@ int64_t SmoothAnswersInTime(const ShapeData& data,
         }
         total += t;
       };
-      add(f, h + 1.0);
-      for (int dir : {-1, 1}) {
-        for (int s = 1; s <= h; ++s) {
-          const int g = f + dir * s;
-          if (g < 0 || g >= F) break;
-          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
-          if (!(*(*frames)[g].observed)[k]) break;
-          add(g, h + 1.0 - s);
-        }
-      }
+      ForEachInWindow(frame_numbers, f, h,
+                      [&](int g) { return (*(*frames)[g].observed)[k] != 0; }, add);
       std::sort(touched.begin(), touched.end());
       std::vector<std::pair<int, double>> average;
       average.reserve(touched.size());
@@ -181,16 +193,8 @@ int64_t SmoothDetailInTime(const std::vector<int>& frame_numbers, int window,
         for (const auto& [n, w] : (*other.answers)[k]) sum[n] += t * w;
         for (const auto& [n, w] : *other.global) sum[n] -= t * w;
       };
-      add(f, h + 1.0);
-      for (int dir : {-1, 1}) {
-        for (int s = 1; s <= h; ++s) {
-          const int g = f + dir * s;
-          if (g < 0 || g >= F) break;
-          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
-          if (!(*(*frames)[g].observed)[k]) break;
-          add(g, h + 1.0 - s);
-        }
-      }
+      ForEachInWindow(frame_numbers, f, h,
+                      [&](int g) { return (*(*frames)[g].observed)[k] != 0; }, add);
       if (!any_detail || total == h + 1.0) continue;  // no detail, or no other frame
       std::vector<std::pair<int, double>>& detail = (*frame.detail)[k];
       detail.reserve(sum.size());
@@ -224,20 +228,15 @@ void AverageInTake(const std::vector<int>& frame_numbers,
     (*variance_factor)[f].assign(K, 1.0);
     for (int k = 0; k < K; ++k) {
       if (!(*observed[f])[k]) continue;
-      Vec3 sum = (h + 1.0) * values[f][k];
-      double total = h + 1.0, squares = (h + 1.0) * (h + 1.0);
-      for (int dir : {-1, 1}) {
-        for (int s = 1; s <= h; ++s) {
-          const int g = f + dir * s;
-          if (g < 0 || g >= F) break;
-          if (std::abs(frame_numbers[g] - frame_numbers[f]) != s) break;
-          if (!(*observed[g])[k]) break;
-          const double t = h + 1.0 - s;
-          sum += t * values[g][k];
-          total += t;
-          squares += t * t;
-        }
-      }
+      Vec3 sum = Vec3::Zero();
+      double total = 0.0, squares = 0.0;
+      ForEachInWindow(
+          frame_numbers, f, h, [&](int g) { return (*observed[g])[k] != 0; },
+          [&](int g, double t) {
+            sum += t * values[g][k];
+            total += t;
+            squares += t * t;
+          });
       (*averaged)[f][k] = sum / total;
       (*variance_factor)[f][k] = squares / (total * total);
     }
