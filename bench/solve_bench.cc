@@ -42,6 +42,18 @@ struct Base {
     o.seed = 11;
     o.noise_mm = 0.5;
     noisy_combos = MakeTruthFrames(model, actor.markers, plan, o);
+    o.kind = "performance";
+    o.frames = 48;
+    o.seed = 12;
+    noisy_performance = MakeTruthFrames(model, actor.markers, plan, o);
+  }
+  // The frames of BM_RobustSequence / BM_BoundedSequence: 0 combinations,
+  // 1 the same with 0.5 mm noise, 2 the performance (a take: the robust
+  // default's temporal steps run), 3 the same with 0.5 mm noise.
+  const TruthFrames& Material(int64_t m) const {
+    const TruthFrames* all[] = {&combos, &noisy_combos, &performance,
+                                &noisy_performance};
+    return *all[m];
   }
   BundleFrame Bundles(const MatX3d& x, int frame) const {
     BundleFrame b;
@@ -60,6 +72,7 @@ struct Base {
   std::vector<std::vector<int>> regions;
   TruthFrames combos, performance;
   TruthFrames noisy_combos;  // the combinations with 0.5 mm marker noise
+  TruthFrames noisy_performance;  // the performance with 0.5 mm noise
 };
 
 Base& GetBase() {
@@ -164,12 +177,14 @@ BENCHMARK(BM_SolveFrame)
     ->Repetitions(3)
     ->ReportAggregatesOnly(true);
 
-// The robust default (blending/robust_solver.h) over the 24 combination
-// frames, without noise (noisy:0) and with 0.5 mm marker noise (noisy:1:
-// most bundles then fall outside their clouds, and lgi's projection
-// searches cost more): it is a sequence solve (the noise estimate and the
-// ridge are per sequence), so the counter s_per_frame is the sequence time
-// / 24, with the default index pruning (quality 0.2, edges <= 6 mm).
+// The robust default (blending/robust_solver.h) per frame of a sequence
+// (the noise estimate, the ridge and on a take the temporal steps are per
+// sequence), with the default index pruning (quality 0.2, edges <= 6 mm).
+// material (Base::Material): 0 the 24 combinations, 1 with 0.5 mm marker
+// noise (most bundles then fall outside their clouds, and lgi's projection
+// searches cost more), 2 the 48-frame performance (a take), 3 with noise.
+// Counter s_per_frame = sequence time / frames; compare with
+// BM_BoundedSequence on the same material (issue 23: within 2x).
 void BM_RobustSequence(benchmark::State& state) {
   Base& base = GetBase();
   Variant& v = GetVariant(200, 6, 24, 8);
@@ -178,7 +193,7 @@ void BM_RobustSequence(benchmark::State& state) {
   const BlendshapeSolver global(base.actor.neutral, base.data, bounded);
   RobustSolver robust(base.actor.neutral, base.data, *v.solver, base.nn,
                       global, SolveOptions(), RobustOptions());
-  const TruthFrames& t = state.range(0) ? base.noisy_combos : base.combos;
+  const TruthFrames& t = base.Material(state.range(0));
   std::vector<JawPose> jaw;
   for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
   RobustReport report;
@@ -194,9 +209,35 @@ void BM_RobustSequence(benchmark::State& state) {
       std::max<int64_t>(1, report.bundles_local + report.bundles_global);
 }
 BENCHMARK(BM_RobustSequence)
-    ->ArgName("noisy")
-    ->Arg(0)
-    ->Arg(1)
+    ->ArgName("material")
+    ->DenseRange(0, 3)
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime()
+    ->UseRealTime()
+    ->Repetitions(3)
+    ->ReportAggregatesOnly(true);
+
+// The bounded blendshape fit (`--method blendshape-bounded`) on the same
+// material: the per-frame reference of issue 23's "within 2x".
+void BM_BoundedSequence(benchmark::State& state) {
+  Base& base = GetBase();
+  BlendshapeOptions bounded;
+  bounded.bounded = true;
+  const BlendshapeSolver solver(base.actor.neutral, base.data, bounded);
+  const TruthFrames& t = base.Material(state.range(0));
+  std::vector<JawPose> jaw;
+  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  for (auto _ : state) {
+    SolveResult r = solver.SolveSequence(t.bundles, jaw);
+    benchmark::DoNotOptimize(r.meshes.data());
+  }
+  state.counters["s_per_frame"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * t.bundles.size()),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_BoundedSequence)
+    ->ArgName("material")
+    ->DenseRange(0, 3)
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime()
     ->UseRealTime()
