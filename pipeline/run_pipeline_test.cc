@@ -1,9 +1,11 @@
 #include "pipeline/run_pipeline.h"
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/actor.h"
@@ -26,6 +28,7 @@ class FakeCommands {
  public:
   int operator()(const std::vector<std::string>& args) {
     calls.push_back(args[0]);
+    args_of[args[0]] = args;
     if (args[0] == fail_on) throw std::runtime_error("killed in " + fail_on);
     std::string content = args[0];
     for (const std::string& a : args) {
@@ -52,14 +55,16 @@ class FakeCommands {
     return 0;
   }
   std::vector<std::string> calls;
+  std::map<std::string, std::vector<std::string>> args_of;  // the last call's
   std::string fail_on;
 };
 
 struct Fixture {
   TempDir dir;
   RunInput input;
-  Fixture() {
+  explicit Fixture(const std::string& actor_rig = "generator") {
     SynthActorOptions actor;
+    actor.rig = actor_rig;
     actor.grid_u = 24;
     actor.grid_v = 20;
     actor.dataset_inbetweens = false;
@@ -119,6 +124,27 @@ TEST(RunPipelineTest, RunsEveryStageOnceThenKeepsWhatIsComplete) {
   const RunSummary second = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
   EXPECT_TRUE(commands.calls.empty());
   for (const StageRun& r : second.stages) EXPECT_EQ(r.status, "complete") << r.stage;
+}
+
+// An actor as most studios have it, without a jaw rig (the linear rig):
+// the jaw stage records that it was skipped and the solve gets no --jaw.
+TEST(RunPipelineTest, AnActorWithoutAJawRigSkipsTheJawStage) {
+  Fixture fx("linear");
+  FakeCommands commands;
+  const RunSummary s = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_EQ(commands.calls,
+            (std::vector<std::string>{"calibrate", "track", "triangulate", "stabilize", "solve",
+                                      "convert", "report"}));
+  EXPECT_EQ(Statuses(s)[4], "jaw:skipped");
+  const nlohmann::json summary = nlohmann::json::parse(
+      ReadFile(fs::path(fx.input.out) / "jaw" / "summary.json"));
+  EXPECT_NE(summary.dump().find("no jaw rig"), std::string::npos) << summary.dump();
+  const std::vector<std::string>& solve = commands.args_of.at("solve");
+  EXPECT_EQ(std::find(solve.begin(), solve.end(), "--jaw"), solve.end());
+  // Complete once skipped: a second run keeps every stage.
+  commands.calls.clear();
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_TRUE(commands.calls.empty());
 }
 
 TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {
