@@ -177,6 +177,33 @@ BENCHMARK(BM_SolveFrame)
     ->Repetitions(3)
     ->ReportAggregatesOnly(true);
 
+// Solves the state's material as one sequence per iteration (solve(frames,
+// jaw) -> SolveResult) and sets s_per_frame.
+template <typename Solve>
+void SolveMaterial(benchmark::State& state, const Solve& solve) {
+  const TruthFrames& t = GetBase().Material(state.range(0));
+  std::vector<JawPose> jaw;
+  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  for (auto _ : state) {
+    SolveResult r = solve(t.bundles, jaw);
+    benchmark::DoNotOptimize(r.meshes.data());
+  }
+  state.counters["s_per_frame"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * t.bundles.size()),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+// Materials 0-3, wall time with both cores' CPU, median of 3.
+void PerMaterial(benchmark::internal::Benchmark* b) {
+  b->ArgName("material")
+      ->DenseRange(0, 3)
+      ->Unit(benchmark::kMillisecond)
+      ->MeasureProcessCPUTime()
+      ->UseRealTime()
+      ->Repetitions(3)
+      ->ReportAggregatesOnly(true);
+}
+
 // The robust default (blending/robust_solver.h) per frame of a sequence
 // (the noise estimate, the ridge and on a take the temporal steps are per
 // sequence), with the default index pruning (quality 0.2, edges <= 6 mm).
@@ -193,29 +220,16 @@ void BM_RobustSequence(benchmark::State& state) {
   const BlendshapeSolver global(base.actor.neutral, base.data, bounded);
   RobustSolver robust(base.actor.neutral, base.data, *v.solver, base.nn,
                       global, SolveOptions(), RobustOptions());
-  const TruthFrames& t = base.Material(state.range(0));
-  std::vector<JawPose> jaw;
-  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
   RobustReport report;
-  for (auto _ : state) {
-    SolveResult r = robust.SolveSequence(t.bundles, jaw, {}, &report);
-    benchmark::DoNotOptimize(r.meshes.data());
-  }
-  state.counters["s_per_frame"] = benchmark::Counter(
-      static_cast<double>(state.iterations() * t.bundles.size()),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  SolveMaterial(state, [&](const std::vector<BundleFrame>& frames,
+                           const std::vector<JawPose>& jaw) {
+    return robust.SolveSequence(frames, jaw, {}, &report);
+  });
   state.counters["local_fraction"] =
       static_cast<double>(report.bundles_local) /
       std::max<int64_t>(1, report.bundles_local + report.bundles_global);
 }
-BENCHMARK(BM_RobustSequence)
-    ->ArgName("material")
-    ->DenseRange(0, 3)
-    ->Unit(benchmark::kMillisecond)
-    ->MeasureProcessCPUTime()
-    ->UseRealTime()
-    ->Repetitions(3)
-    ->ReportAggregatesOnly(true);
+BENCHMARK(BM_RobustSequence)->Apply(PerMaterial);
 
 // The bounded blendshape fit (`--method blendshape-bounded`) on the same
 // material: the per-frame reference of issue 23's "within 2x".
@@ -224,25 +238,12 @@ void BM_BoundedSequence(benchmark::State& state) {
   BlendshapeOptions bounded;
   bounded.bounded = true;
   const BlendshapeSolver solver(base.actor.neutral, base.data, bounded);
-  const TruthFrames& t = base.Material(state.range(0));
-  std::vector<JawPose> jaw;
-  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
-  for (auto _ : state) {
-    SolveResult r = solver.SolveSequence(t.bundles, jaw);
-    benchmark::DoNotOptimize(r.meshes.data());
-  }
-  state.counters["s_per_frame"] = benchmark::Counter(
-      static_cast<double>(state.iterations() * t.bundles.size()),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  SolveMaterial(state, [&](const std::vector<BundleFrame>& frames,
+                           const std::vector<JawPose>& jaw) {
+    return solver.SolveSequence(frames, jaw);
+  });
 }
-BENCHMARK(BM_BoundedSequence)
-    ->ArgName("material")
-    ->DenseRange(0, 3)
-    ->Unit(benchmark::kMillisecond)
-    ->MeasureProcessCPUTime()
-    ->UseRealTime()
-    ->Repetitions(3)
-    ->ReportAggregatesOnly(true);
+BENCHMARK(BM_BoundedSequence)->Apply(PerMaterial);
 
 void BM_Blend(benchmark::State& state) {
   Base& base = GetBase();
