@@ -778,10 +778,7 @@ void RobustSolver::ChooseCorrection(Sequence* seq) {
     std::vector<std::vector<Vec3>> raw(good.size());
     for (size_t i = 0; i < good.size(); ++i) raw[i] = work[good[i]].residual;
     AverageInTake(numbers, good_observed, raw, options_.correction_window, &source, &q);
-    const int h = options_.correction_window / 2;
-    double total = 0, squares = 0;
-    for (int s = -h; s <= h; ++s) total += h + 1.0 - std::abs(s), squares += std::pow(h + 1.0 - std::abs(s), 2);
-    const double q_independent = squares / (total * total);
+    const double q_independent = WholeWindowVarianceFactor(options_.correction_window);
     // How much of the residuals' noise the average really removes: the
     // generalised cross-validation noise of the averaged residuals against
     // that of the frames' own. Independent noise keeps q_independent of

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -241,6 +242,20 @@ void AverageInTake(const std::vector<int>& frame_numbers,
       (*variance_factor)[f][k] = squares / (total * total);
     }
   });
+}
+
+double WholeWindowVarianceFactor(int window) {
+  const int h = std::max(window, 1) / 2;
+  std::vector<int> numbers(2 * h + 1);  // consecutive frames
+  std::iota(numbers.begin(), numbers.end(), 0);
+  double total = 0.0, squares = 0.0;
+  ForEachInWindow(
+      numbers, h, h, [](int) { return true; },
+      [&](int, double t) {
+        total += t;
+        squares += t * t;
+      });
+  return squares / (total * total);
 }
 
 }  // namespace hmc

@@ -128,4 +128,9 @@ void AverageInTake(const std::vector<int>& frame_numbers,
                    std::vector<std::vector<Vec3>>* averaged,
                    std::vector<std::vector<double>>* variance_factor);
 
+// AverageInTake's variance factor where the whole window is there (every
+// frame consecutive and observed): the least share of independent noise's
+// variance the average keeps (19/81 for 5 frames; 1 for window <= 1).
+double WholeWindowVarianceFactor(int window);
+
 }  // namespace hmc

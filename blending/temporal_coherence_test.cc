@@ -295,6 +295,10 @@ TEST_P(TemporalCoherence, ResidualsOfATakeAverageTheNoiseAndKeepASmoothMotion) {
   EXPECT_NEAR(q[200][0], 14.0 / 36, 1e-12);
   EXPECT_GT(q[51][2], 19.0 / 81);  // frame 50 left out of bundle 2's window
   EXPECT_NEAR(q[51][1], 19.0 / 81, 1e-12);
+  // The whole window's factor, as step 5 takes it for its floor.
+  EXPECT_EQ(WholeWindowVarianceFactor(5), q[100][0]);
+  EXPECT_NEAR(WholeWindowVarianceFactor(3), 6.0 / 16, 1e-15);  // weights 1 2 1
+  EXPECT_EQ(WholeWindowVarianceFactor(1), 1.0);
   // Independent noise: the averaged variance as q says (inside the take).
   AverageInTake(numbers, observed, noise, 5, &averaged, &q);
   double sum2 = 0;
