@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/parallel.h"
+#include "stabilization/head_fit.h"
 #include "stabilization/rigid_fit.h"
 
 namespace hmc {
@@ -22,14 +23,14 @@ void StabilizeOptions::Register(OptionFields* fields) {
   fields->Add("noise_mm", &noise_mm, "sigma: bundle noise assumed by the motion weights (mm)");
   fields->Add("loss", &loss, "robust loss of the reweighting: none | huber | cauchy");
   fields->Add("loss_scale_mm", &loss_scale_mm, "residual scale of the robust loss (mm)");
-  fields->Add("irls_iterations", &irls_iterations, "most reweighting steps per fit");
-  fields->Add("expression", &expression, "alternate the rigid fit with global shape weights");
+  fields->Add("expression", &expression, "fit global shape weights jointly with the pose");
   fields->Add("shot_weights", &shot_weights,
               "second pass with weights from the first pass's per-marker residuals");
-  fields->Add("expression_iterations", &expression_iterations,
-              "rigid / shape-weight alternations (expression)");
   fields->Add("expression_ridge", &expression_ridge,
               "ridge on the shape weights (mm^2 per unit weight^2)");
+  fields->Add("max_iterations", &max_iterations, "reweighting rounds per frame at most");
+  fields->Add("tolerance_mm", &tolerance_mm,
+              "converged: a round of reweighting moves no marker further (mm)");
   fields->Add("min_markers", &min_markers, "fewer usable markers: the frame is interpolated");
   fields->Add("min_weight", &min_weight, "prior weight (of the largest) a usable marker needs");
   fields->Add("bad_track_mm", &bad_track_mm,
@@ -55,10 +56,8 @@ bool StabilizeOptions::Check() const {
   }
   if (!(noise_mm > 0 && noise_mm <= 10)) fail("noise_mm must be in (0, 10]");
   if (!(loss_scale_mm > 0 && loss_scale_mm <= 100)) fail("loss_scale_mm must be in (0, 100]");
-  if (irls_iterations < 0 || irls_iterations > 1000) fail("irls_iterations must be in [0, 1000]");
-  if (expression_iterations < 1 || expression_iterations > 100) {
-    fail("expression_iterations must be in [1, 100]");
-  }
+  if (max_iterations < 1 || max_iterations > 10000) fail("max_iterations must be in [1, 10000]");
+  if (!(tolerance_mm > 0 && tolerance_mm <= 1)) fail("tolerance_mm must be in (0, 1]");
   if (!(expression_ridge > 0 && expression_ridge <= 1e6)) {
     fail("expression_ridge must be in (0, 1e6]");
   }
@@ -71,9 +70,11 @@ bool StabilizeOptions::Check() const {
 
 std::string StabilizeOutput::BriefReport() const {
   return fmt::format(
-      "{} frames ({} fitted, {} interpolated), mean weighted residual {:.3f} mm, {} bad "
+      "{} frames ({} fitted, {} interpolated{}), mean weighted residual {:.3f} mm, {} bad "
       "track(s){}, {:.0f} frames/s",
-      frames.size(), num_ok, num_interpolated, mean_rms_mm, bad_tracks.size(),
+      frames.size(), num_ok, num_interpolated,
+      num_not_converged > 0 ? fmt::format(", {} not converged", num_not_converged) : "",
+      mean_rms_mm, bad_tracks.size(),
       unknown_markers.empty() ? ""
                               : fmt::format(", {} unknown marker(s) ignored",
                                             unknown_markers.size()),
@@ -102,29 +103,25 @@ Eigen::VectorXd StabilizationWeights(const MarkerModel& model,
 
 namespace {
 
-// Residuals beyond this many loss scales leave the marker out of the next
-// shape-weight fit (Cauchy weight below 0.1).
-constexpr double kOutlierScales = 3.0;
-
-// The per-frame fit: precomputed prior weights and, for the expression-
-// aware fit, the Cholesky factor of B^T B + lambda I over all markers.
+// The per-frame fit (stabilization/head_fit.h) with the pass's prior
+// weights.
 class FrameStabilizer {
  public:
   FrameStabilizer(const MarkerModel& model, const StabilizeOptions& options)
       : model_(model), options_(options), w0_(StabilizationWeights(model, options)) {
-    ParseRobustLoss(options.loss, &loss_);
-    if (options.expression && model.num_shapes > 0) {
-      const Eigen::MatrixXd& b = model.displacement;
-      normal_ = b.transpose() * b;
-      normal_.diagonal().array() += options.expression_ridge;
-      full_factor_.compute(normal_);
-    }
+    ParseRobustLoss(options.loss, &fit_options_.loss);
+    fit_options_.loss_scale_mm = options.loss_scale_mm;
+    fit_options_.ridge = options.expression_ridge;
+    fit_options_.max_iterations = options.max_iterations;
+    fit_options_.tolerance_mm = options.tolerance_mm;
   }
 
   const Eigen::VectorXd& prior_weights() const { return w0_; }
   void set_prior_weights(const Eigen::VectorXd& w0) { w0_ = w0; }
 
-  StabilizedFrame Fit(const BundleFrame& in) const {
+  // `previous`: this frame's fit of an earlier pass (or null), where the
+  // fit starts.
+  StabilizedFrame Fit(const BundleFrame& in, const StabilizedFrame* previous) const {
     StabilizedFrame out;
     out.frame = in.frame;
     std::vector<int> ks;
@@ -136,11 +133,14 @@ class FrameStabilizer {
       points.push_back(p);
     }
     const int n = static_cast<int>(ks.size());
+    const bool expression = options_.expression && model_.num_shapes > 0;
     Eigen::Matrix3Xd a(3, n), q(3, n);
+    Eigen::MatrixXd b(3 * n, expression ? model_.num_shapes : 0);
     Eigen::VectorXd w0(n);
     for (int i = 0; i < n; ++i) {
       a.col(i) = points[i];
       q.col(i) = model_.neutral.row(ks[i]).transpose();
+      if (expression) b.middleRows<3>(3 * i) = model_.displacement.middleRows<3>(3 * ks[i]);
       w0[i] = w0_[ks[i]];
       out.markers_used += w0[i] >= options_.min_weight && w0[i] > 0;
     }
@@ -149,102 +149,45 @@ class FrameStabilizer {
                                options_.min_markers);
       return out;
     }
-    Eigen::Matrix3Xd target = q;
-    Eigen::VectorXd w = w0;
-    RigidFit fit = WeightedRigidFit(a, target, w);
-    const int outer = options_.expression && model_.num_shapes > 0
-                          ? options_.expression_iterations + 1
-                          : 1;
-    std::vector<char> inlier(n, 1);
-    for (int round = 0; round < outer && fit.ok; ++round) {
-      if (round > 0) {
-        target = q + ExpressionOffsets(ks, inlier, fit.target_from_source * a - q);
-      }
-      fit = Reweighted(a, target, w0, &w);
-      // A marker far off the expression's fit (a bad track) would pull the
-      // shape weights: the next shape fit leaves it out. (Before the first
-      // shape fit every moving marker is far off the neutral.)
-      if (round > 0 && loss_ != RobustLoss::kNone && fit.ok) {
-        const Eigen::Matrix3Xd r = fit.target_from_source * a - target;
-        for (int i = 0; i < n; ++i) {
-          inlier[i] = r.col(i).norm() <= kOutlierScales * options_.loss_scale_mm;
-        }
-      }
+    // Started from the earlier pass's answer, or the rigid fit to the
+    // neutral.
+    HeadFitResult fit;
+    if (previous != nullptr && previous->ok) {
+      Eigen::VectorXd residuals(n);
+      for (int i = 0; i < n; ++i) residuals[i] = previous->residuals[i].residual_mm;
+      fit = FitHeadAndExpression(a, q, b, w0, previous->head_from_helmet, fit_options_,
+                                 residuals);
+    } else if (const RigidFit start = WeightedRigidFit(a, q, w0); start.ok) {
+      fit = FitHeadAndExpression(a, q, b, w0, start.target_from_source, fit_options_);
     }
     if (!fit.ok) {
       out.reason = "usable markers are collinear";
       return out;
     }
     out.ok = true;
-    out.head_from_helmet = fit.target_from_source;
-    const Eigen::Matrix3Xd r = fit.target_from_source * a - target;
+    out.head_from_helmet = fit.head_from_helmet;
+    out.iterations = fit.iterations;
+    out.converged = fit.converged;
+    out.last_step_mm = fit.last_step_mm;
     double sum_w = 0, sum_wr2 = 0;
     for (int i = 0; i < n; ++i) {
-      const double norm = r.col(i).norm();
-      out.residuals.push_back({ks[i], norm, w[i]});
-      sum_w += w[i];
-      sum_wr2 += w[i] * norm * norm;
+      // Every present marker's residual, also those of zero prior weight.
+      Vec3 r = fit.head_from_helmet * a.col(i) - q.col(i);
+      if (expression) r -= b.middleRows<3>(3 * i) * fit.shape_weights;
+      const double norm = r.norm();
+      out.residuals.push_back({ks[i], norm, fit.weights[i]});
+      sum_w += fit.weights[i];
+      sum_wr2 += fit.weights[i] * norm * norm;
     }
     out.rms_mm = sum_w > 0 ? std::sqrt(sum_wr2 / sum_w) : 0.0;
     return out;
   }
 
  private:
-  // IRLS from the prior weights; *w receives the final weights.
-  RigidFit Reweighted(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& target,
-                      const Eigen::VectorXd& w0, Eigen::VectorXd* w) const {
-    *w = w0;
-    RigidFit fit = WeightedRigidFit(a, target, *w);
-    if (loss_ == RobustLoss::kNone) return fit;
-    for (int it = 0; it < options_.irls_iterations && fit.ok; ++it) {
-      const Eigen::Matrix3Xd r = fit.target_from_source * a - target;
-      for (int i = 0; i < a.cols(); ++i) {
-        (*w)[i] = w0[i] * RobustWeight(loss_, r.col(i).norm(), options_.loss_scale_mm);
-      }
-      const RigidFit next = WeightedRigidFit(a, target, *w);
-      if (!next.ok) return next;
-      const double change =
-          (next.target_from_source.matrix() - fit.target_from_source.matrix()).norm();
-      fit = next;
-      if (change < 1e-9) break;  // mm and rad: far below any accuracy asked
-    }
-    return fit;
-  }
-
-  // B_k c for the present markers ks, c the ridge fit of the residuals d
-  // (3 x n) of the inliers: min_c sum_inliers |d_k - B_k c|^2 + lambda |c|^2.
-  Eigen::Matrix3Xd ExpressionOffsets(const std::vector<int>& ks, const std::vector<char>& inlier,
-                                     const Eigen::Matrix3Xd& d) const {
-    const Eigen::MatrixXd& b = model_.displacement;
-    const int n = static_cast<int>(ks.size());
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(model_.num_shapes);
-    std::vector<char> used(model_.num_markers, 0);
-    int num_used = 0;
-    for (int i = 0; i < n; ++i) {
-      if (!inlier[i]) continue;
-      rhs.noalias() += b.middleRows<3>(3 * ks[i]).transpose() * d.col(i);
-      used[ks[i]] = 1;
-      ++num_used;
-    }
-    Eigen::VectorXd c;
-    if (num_used == model_.num_markers) {
-      c = full_factor_.solve(rhs);
-    } else {
-      // Missing or left-out markers: take their terms out of the normal
-      // matrix.
-      c = NormalWithout(normal_, b, used).llt().solve(rhs);
-    }
-    Eigen::Matrix3Xd offsets(3, n);
-    for (int i = 0; i < n; ++i) offsets.col(i) = b.middleRows<3>(3 * ks[i]) * c;
-    return offsets;
-  }
-
   const MarkerModel& model_;
   const StabilizeOptions& options_;
   Eigen::VectorXd w0_;
-  RobustLoss loss_ = RobustLoss::kCauchy;
-  Eigen::MatrixXd normal_;
-  Eigen::LLT<Eigen::MatrixXd> full_factor_;
+  HeadFitOptions fit_options_;
 };
 
 Eigen::Quaterniond Rotation(const Rigid3& t) { return Eigen::Quaterniond(t.linear()); }
@@ -371,12 +314,12 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
   StabilizeOutput out;
   out.frames.resize(num_frames);
   ParallelFor(0, num_frames, [&](int64_t f) {
-    out.frames[f] = stabilizer.Fit(bundles_helmet[f]);
+    out.frames[f] = stabilizer.Fit(bundles_helmet[f], nullptr);
   }, 8);
   if (options.shot_weights) {
     stabilizer.set_prior_weights(ShotWeights(model, out.frames, stabilizer.prior_weights()));
     ParallelFor(0, num_frames, [&](int64_t f) {
-      out.frames[f] = stabilizer.Fit(bundles_helmet[f]);
+      out.frames[f] = stabilizer.Fit(bundles_helmet[f], &out.frames[f]);
     }, 8);
   }
   InterpolateFailedPoses(&out.frames);
@@ -405,6 +348,7 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
       continue;
     }
     ++out.num_ok;
+    out.num_not_converged += !frame.converged;
     sum_rms += frame.rms_mm;
     for (const MarkerResidual& r : frame.residuals) {
       residuals[r.marker].push_back(r.residual_mm);
@@ -420,6 +364,18 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
   for (const BadTrack& bad : out.bad_tracks) {
     spdlog::warn("stabilize: marker {} looks like a bad track (median residual {:.2f} mm)",
                  bad.marker, bad.median_residual_mm);
+  }
+  if (out.num_not_converged > 0) {
+    std::string first;
+    for (const StabilizedFrame& frame : out.frames) {
+      if (frame.ok && !frame.converged) {
+        first = fmt::format("frame {}: last step {:.2g} mm", frame.frame, frame.last_step_mm);
+        break;
+      }
+    }
+    spdlog::warn("stabilize: {} frame(s) did not converge in {} steps (first: {}); their "
+                 "poses are the last step's",
+                 out.num_not_converged, options.max_iterations, first);
   }
   if (!out.unknown_markers.empty()) {
     spdlog::warn("stabilize: {} marker name(s) not in the actor ignored (first: {})",
@@ -466,6 +422,17 @@ void WriteStabilizeOutput(const StabilizeOutput& output,
     if (!frame.ok) interpolated.push_back({{"frame", frame.frame}, {"reason", frame.reason}});
   }
   summary["interpolated_frames"] = interpolated;
+  // Per fitted frame: Gauss-Newton steps and the last step (docs/formats.md).
+  nlohmann::json fits = nlohmann::json::array();
+  for (const StabilizedFrame& frame : output.frames) {
+    if (!frame.ok) continue;
+    fits.push_back({{"frame", frame.frame},
+                    {"iterations", frame.iterations},
+                    {"last_step_mm", frame.last_step_mm},
+                    {"converged", frame.converged}});
+  }
+  summary["not_converged"] = output.num_not_converged;
+  summary["fits"] = fits;
   nlohmann::json bad = nlohmann::json::array();
   for (const BadTrack& b : output.bad_tracks) {
     bad.push_back({{"marker", b.marker}, {"median_residual_mm", b.median_residual_mm}});

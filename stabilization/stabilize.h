@@ -5,8 +5,9 @@
 //
 // Per frame, with a_k the bundle of marker k in helmet space and q_k the
 // marker on the neutral:
-//   min_T sum_k w0_k rho(|T a_k - q_k - B_k c|)
-// by iteratively reweighted weighted Kabsch fits (stabilization/rigid_fit.h).
+//   min_{T, c} sum_k w0_k rho(|T a_k - q_k - B_k c|) + lambda |c|^2
+// (stabilization/head_fit.h): the expression c projected out, Gauss-Newton
+// on the pose with robust weights renewed every step, to convergence.
 //  - Prior weights w0_k from the actor's dataset (`weighting: motion`): the
 //    inverse of the variance a marker's position has about the rigid head,
 //    w0_k = 1 / (sigma^2 + m_k^2), sigma the assumed bundle noise and m_k
@@ -16,12 +17,10 @@
 //    `tags`: 1 on markers tagged `stable`, 0 elsewhere; `both`: the motion
 //    weights on the `stable` markers only.
 //  - Expression-aware (`expression: true`): c are global shape weights
-//    fitted to all markers' residuals T a_k - q_k = B_k c by ridge least
-//    squares (B_k the 3 x N skinned shape displacements at marker k),
-//    alternating with the rigid fit, so a brow raise or a squint is
-//    explained by the shapes and does not tilt the head. A marker more than
-//    3 loss scales off the expression's fit is left out of the next shape
-//    fit (a bad track would pull the shape weights).
+//    (B_k the 3 x N skinned shape displacements at marker k) fitted jointly
+//    with the pose, so a brow raise or a squint is explained by the shapes
+//    and does not tilt the head; a marker the shapes cannot explain (a bad
+//    track, a unit the dataset lacks) gets a small robust weight.
 //  - Shot weights (`shot_weights: true`): a second pass whose prior weights
 //    are w0_k = 1 / (v_k + v_floor), v_k marker k's median squared residual
 //    over the first pass's frames and v_floor the median v_k of the markers
@@ -52,11 +51,11 @@ struct StabilizeOptions {
   double noise_mm = 0.1;         // sigma: bundle noise assumed by the motion weights (mm)
   std::string loss = "cauchy";   // robust loss of the reweighting: none | huber | cauchy
   double loss_scale_mm = 0.5;    // residual scale of the robust loss (mm)
-  int irls_iterations = 20;      // most reweighting steps per fit
-  bool expression = true;        // alternate the rigid fit with global shape weights
+  bool expression = true;        // fit global shape weights jointly with the pose
   bool shot_weights = true;      // second pass with weights from the first pass's per-marker residuals
-  int expression_iterations = 4;  // rigid / shape-weight alternations (expression)
-  double expression_ridge = 0.1;  // ridge on the shape weights (mm^2 per unit weight^2)
+  double expression_ridge = 1e-4;  // ridge on the shape weights (mm^2 per unit weight^2)
+  int max_iterations = 100;      // reweighting rounds per frame at most
+  double tolerance_mm = 1e-4;    // converged: a round of reweighting moves no marker further (mm)
   int min_markers = 4;           // fewer usable markers: the frame is interpolated
   double min_weight = 0.01;      // prior weight (of the largest) a usable marker needs
   double bad_track_mm = 1.0;     // a trusted marker (prior weight >= 0.5) whose median residual exceeds this is reported
@@ -80,6 +79,9 @@ struct StabilizedFrame {
   std::string reason;        // why the frame was not fitted
   int markers_used = 0;      // usable markers present
   double rms_mm = 0;         // weighted RMS residual of the fit (mm)
+  int iterations = 0;        // reweighting rounds of the (last pass's) fit
+  bool converged = false;    // its last round moved no marker by more than tolerance_mm
+  double last_step_mm = 0;   // how far its last round moved the furthest marker (mm)
   std::vector<MarkerResidual> residuals;  // every present marker
 };
 
@@ -95,6 +97,7 @@ struct StabilizeOutput {
   std::vector<std::string> unknown_markers;  // in the bundles, not in the actor
   int num_ok = 0;
   int num_interpolated = 0;
+  int num_not_converged = 0;  // fitted frames whose fit stopped at max_iterations
   double mean_rms_mm = 0;     // over fitted frames
   double seconds = 0;
   std::string BriefReport() const;
