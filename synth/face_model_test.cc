@@ -325,6 +325,25 @@ TEST(FaceModelTest, DeterministicBySeed) {
   EXPECT_GT((a.Evaluate(act) - c.Evaluate(act)).cwiseAbs().maxCoeff(), 0.5);
 }
 
+// Random combinations of a linear model's units (out-of-range activations
+// clamped) are the sums of their scaled extremes (`extreme`: the units'
+// displacements at activation 1).
+void ExpectCombinationsAreSums(const FaceModel& model, const std::vector<MatX3d>& extreme,
+                               int seed) {
+  const MatX3d& x0 = model.neutral().V;
+  const int K = model.NumUnits();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.2, 1.2);
+  for (int trial = 0; trial < 5; ++trial) {
+    Eigen::VectorXd a(K);
+    for (int k = 0; k < K; ++k) a[k] = u(rng);
+    MatX3d sum = MatX3d::Zero(x0.rows(), 3);
+    for (int k = 0; k < K; ++k) sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
+    EXPECT_LT(MaxRowNorm(model.Evaluate(a) - x0 - sum), 1e-9);
+    EXPECT_LT(MaxRowNorm(model.EvaluateUnskinned(a) - x0 - sum), 1e-9);
+  }
+}
+
 // The linear rig (docs/synthetic.md, "Linear rig"): each unit's extreme is
 // the generator's, in-betweens lie on the line and any combination is the
 // sum of its units' scaled extremes; no jaw rig, the jaw pose is zero.
@@ -358,19 +377,7 @@ TEST(FaceModelTest, LinearRigIsLinearInTheActivations) {
     }
     // The test can fail: the generator is not linear.
     EXPECT_GT(nonlinearity, 0.1);
-    // Random combinations (out-of-range activations clamped) are sums.
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-0.2, 1.2);
-    for (int trial = 0; trial < 5; ++trial) {
-      Eigen::VectorXd a(K);
-      for (int k = 0; k < K; ++k) a[k] = u(rng);
-      MatX3d sum = MatX3d::Zero(x0.rows(), 3);
-      for (int k = 0; k < K; ++k) {
-        sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
-      }
-      EXPECT_LT(MaxRowNorm(linear.Evaluate(a) - x0 - sum), 1e-9);
-      EXPECT_LT(MaxRowNorm(linear.EvaluateUnskinned(a) - x0 - sum), 1e-9);
-    }
+    ExpectCombinationsAreSums(linear, extreme, seed);
   }
 }
 
@@ -421,15 +428,7 @@ TEST(FaceModelTest, BroadRigIsLinearWithBroaderExtremes) {
     }
     // Most units move at least twice the area they move on the linear rig.
     EXPECT_GE(broader, 3 * K / 4) << seed;
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-0.2, 1.2);
-    for (int trial = 0; trial < 3; ++trial) {
-      Eigen::VectorXd a(K);
-      for (int k = 0; k < K; ++k) a[k] = u(rng);
-      MatX3d sum = MatX3d::Zero(x0.rows(), 3);
-      for (int k = 0; k < K; ++k) sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
-      EXPECT_LT(MaxRowNorm(broad.Evaluate(a) - x0 - sum), 1e-9);
-    }
+    ExpectCombinationsAreSums(broad, extreme, seed);
   }
 }
 
