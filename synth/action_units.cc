@@ -282,9 +282,9 @@ Field Regions(std::vector<Region> regions, double side) {
   };
 }
 
-// Regions across the midline, symmetric: the window is on |s| in [0, s_hi]
-// (s_lo unused), x points away from the midline (+x on the left), smoothly
-// through 0 within 15 mm of it.
+// Regions across the midline, symmetric: the window is on s in [-s_hi, s_hi]
+// (s_lo unused), and a positive x displacement points away from the midline
+// on either side (fading through 0 within 15 mm of it).
 Field Symmetric(std::vector<Region> regions) {
   for (Region& r : regions) r.s_lo = -r.s_hi;
   return [regions](const VertexContext& c) -> Vec3 {
