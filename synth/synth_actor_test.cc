@@ -270,25 +270,30 @@ TEST(SynthActorTest, BroadRigMovesBroadOverlappingRegions) {
 }
 
 TEST(SynthActorTest, DeterministicBySeed) {
-  const Actor a = SynthesizeActor(Small(5)), b = SynthesizeActor(Small(5));
-  const Actor c = SynthesizeActor(Small(6));
-  EXPECT_EQ(a.neutral.V, b.neutral.V);
-  ASSERT_EQ(a.shapes.size(), b.shapes.size());
-  for (size_t n = 0; n < a.shapes.size(); ++n) {
-    EXPECT_EQ(a.shapes[n].displacement, b.shapes[n].displacement);
+  for (const std::string rig : {"generator", "broad"}) {
+    SCOPED_TRACE(rig);
+    SynthActorOptions five = Small(5), six = Small(6);
+    five.rig = six.rig = rig;
+    const Actor a = SynthesizeActor(five), b = SynthesizeActor(five);
+    const Actor c = SynthesizeActor(six);
+    EXPECT_EQ(a.neutral.V, b.neutral.V);
+    ASSERT_EQ(a.shapes.size(), b.shapes.size());
+    for (size_t n = 0; n < a.shapes.size(); ++n) {
+      EXPECT_EQ(a.shapes[n].displacement, b.shapes[n].displacement);
+    }
+    for (size_t m = 0; m < a.markers.size(); ++m) {
+      EXPECT_EQ(a.markers[m].point.face, b.markers[m].point.face);
+      EXPECT_EQ(a.markers[m].point.bary, b.markers[m].point.bary);
+    }
+    EXPECT_GT((a.neutral.V - c.neutral.V).cwiseAbs().maxCoeff(), 0.5);
+    double shape_difference = 0;
+    for (size_t n = 0; n < a.shapes.size(); ++n) {
+      shape_difference = std::max(
+          shape_difference,
+          (a.shapes[n].displacement - c.shapes[n].displacement).cwiseAbs().maxCoeff());
+    }
+    EXPECT_GT(shape_difference, 0.1);
   }
-  for (size_t m = 0; m < a.markers.size(); ++m) {
-    EXPECT_EQ(a.markers[m].point.face, b.markers[m].point.face);
-    EXPECT_EQ(a.markers[m].point.bary, b.markers[m].point.bary);
-  }
-  EXPECT_GT((a.neutral.V - c.neutral.V).cwiseAbs().maxCoeff(), 0.5);
-  double shape_difference = 0;
-  for (size_t n = 0; n < a.shapes.size(); ++n) {
-    shape_difference = std::max(
-        shape_difference,
-        (a.shapes[n].displacement - c.shapes[n].displacement).cwiseAbs().maxCoeff());
-  }
-  EXPECT_GT(shape_difference, 0.1);
 }
 
 TEST(SynthActorTest, OptionsCheckAndYamlRoundTrip) {
