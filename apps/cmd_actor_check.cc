@@ -1,6 +1,9 @@
 // `hmc actor check DIR [--json]`: loads and validates an actor package and
 // summarises it. A bad package fails like every other command on bad input
-// (InputError -> exit code 2, the message names the file and line).
+// (InputError -> exit code 2, the message names the file and line); a valid
+// one that looks like an export mistake (head far from the origin or not +y
+// up, units off by 10 or 1000, unknown marker tags) is summarised with
+// warnings (core/actor_check.h; exit code 0).
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -8,9 +11,11 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "apps/command.h"
 #include "core/actor.h"
+#include "core/actor_check.h"
 
 namespace hmc {
 namespace {
@@ -40,7 +45,8 @@ ActorSummary Summarise(const Actor& actor) {
   return summary;
 }
 
-nlohmann::json ToJson(const Actor& actor, const ActorSummary& summary) {
+nlohmann::json ToJson(const Actor& actor, const ActorSummary& summary,
+                      const std::vector<ActorWarning>& warnings) {
   nlohmann::json json;
   json["name"] = actor.name;
   json["dir"] = actor.dir.string();
@@ -65,6 +71,10 @@ nlohmann::json ToJson(const Actor& actor, const ActorSummary& summary) {
       {"min", {summary.bbox(0, 0), summary.bbox(0, 1), summary.bbox(0, 2)}},
       {"max", {summary.bbox(1, 0), summary.bbox(1, 1), summary.bbox(1, 2)}}};
   json["content_hash"] = fmt::format("{:016x}", actor.content_hash);
+  json["warnings"] = nlohmann::json::array();
+  for (const ActorWarning& w : warnings) {
+    json["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
+  }
   return json;
 }
 
@@ -72,7 +82,8 @@ std::string FormatRow(const Eigen::RowVector3d& v) {
   return fmt::format("({:.2f}, {:.2f}, {:.2f})", v[0], v[1], v[2]);
 }
 
-void PrintText(const Actor& actor, const ActorSummary& summary) {
+void PrintText(const Actor& actor, const ActorSummary& summary,
+               const std::vector<ActorWarning>& warnings) {
   std::string tags;
   for (const auto& [tag, count] : summary.marker_tags) {
     tags += fmt::format("{}{} {}", tags.empty() ? "" : ", ", tag, count);
@@ -101,6 +112,7 @@ void PrintText(const Actor& actor, const ActorSummary& summary) {
       summary.markers_by_vertex, tags.empty() ? "" : ": ", tags, jaw,
       FormatRow(summary.bbox.row(0)), FormatRow(summary.bbox.row(1)),
       FormatRow(size), actor.content_hash);
+  for (const ActorWarning& w : warnings) fmt::print("warning    {}\n", w.message);
 }
 
 }  // namespace
@@ -114,10 +126,12 @@ HMC_COMMAND(ActorCheck, "actor", "check",
   return [=] {
     const Actor actor = LoadActor(*dir);
     const ActorSummary summary = Summarise(actor);
+    const std::vector<ActorWarning> warnings = ActorWarnings(actor);
+    for (const ActorWarning& w : warnings) spdlog::warn("actor check: {}", w.message);
     if (*json) {
-      std::printf("%s\n", ToJson(actor, summary).dump(2).c_str());
+      std::printf("%s\n", ToJson(actor, summary, warnings).dump(2).c_str());
     } else {
-      PrintText(actor, summary);
+      PrintText(actor, summary, warnings);
     }
     return 0;
   };

@@ -1,4 +1,5 @@
-// `hmc actor synth --out DIR [--seed N] [--holdout N] [--config FILE]`:
+// `hmc actor synth --out DIR [--seed N] [--rig generator|linear|broad]
+// [--holdout N] [--config FILE]`:
 // writes the synthetic actor package (docs/synthetic.md; how it is made:
 // docs/synthetic.md). Besides the package files of WriteActor it writes
 //   synth.yaml               the generator options used (with the seed and

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include "core/error.h"
+
 namespace hmc {
 namespace {
 
@@ -247,6 +249,51 @@ class Details {
   FaceProportions p_;
   double scale_;
 };
+
+// A broad region of the broad rig: weight 1 on s in [s_lo, s_hi] and t in
+// [t_lo, t_hi], falling smoothly to 0 over `soft` mm outside; inside, the
+// displacement goes linearly from `low` (at t_lo) to `high` (at t_hi), plus
+// `normal` mm along the neutral normal. Given for the actor's left side.
+struct Region {
+  double s_lo, s_hi, t_lo, t_hi, soft;
+  Vec3 low, high;
+  double normal = 0.0;
+};
+
+double Window(double x, double lo, double hi, double soft) {
+  return SmoothStep(lo - soft, lo, x) * (1.0 - SmoothStep(hi, hi + soft, x));
+}
+
+Vec3 RegionAt(const Region& r, const VertexContext& c, double s, double x_sign) {
+  const double w = Window(s, r.s_lo, r.s_hi, r.soft) * Window(c.st.y(), r.t_lo, r.t_hi, r.soft);
+  if (w == 0) return Vec3::Zero();
+  const double f = std::clamp((c.st.y() - r.t_lo) / (r.t_hi - r.t_lo), 0.0, 1.0);
+  Vec3 d = (1 - f) * r.low + f * r.high;
+  d.x() *= x_sign;
+  return w * (d + r.normal * c.normal);
+}
+
+// The regions placed on `side` (+1 left, -1 right: s and x mirror).
+Field Regions(std::vector<Region> regions, double side) {
+  return [regions, side](const VertexContext& c) -> Vec3 {
+    Vec3 out = Vec3::Zero();
+    for (const Region& r : regions) out += RegionAt(r, c, side * c.st.x(), side);
+    return out;
+  };
+}
+
+// Regions across the midline, symmetric: the window is on s in [-s_hi, s_hi]
+// (s_lo unused), and a positive x displacement points away from the midline
+// on either side (fading through 0 within 15 mm of it).
+Field Symmetric(std::vector<Region> regions) {
+  for (Region& r : regions) r.s_lo = -r.s_hi;
+  return [regions](const VertexContext& c) -> Vec3 {
+    const double x_sign = std::clamp(c.st.x() / 15.0, -1.0, 1.0);
+    Vec3 out = Vec3::Zero();
+    for (const Region& r : regions) out += RegionAt(r, c, c.st.x(), x_sign);
+    return out;
+  };
+}
 
 class Builder {
  public:
@@ -517,6 +564,135 @@ UnitCatalog BuildUnitCatalog(const FaceProportions& p, double detail_scale) {
     return pose;
   };
   return catalog;
+}
+
+void AddBroadRegions(const FaceProportions& p, UnitCatalog* catalog) {
+  const double et = p.eye_t, bt = p.brow_t, mt = p.mouth_t, nt = p.nose_tip_t,
+               ct = p.chin_t;
+  const double top = kTMax;  // the hairline: the mesh's top row
+  catalog->units.push_back({"mouth_left", {"mouth", "chin", "jaw", "cheek_l", "cheek_r"}});
+  catalog->units.push_back({"mouth_right", {"mouth", "chin", "jaw", "cheek_l", "cheek_r"}});
+  catalog->broad.assign(catalog->units.size(), nullptr);
+  auto set = [&](const std::string& name, Field field, std::vector<std::string> tags) {
+    const int k = catalog->Find(name);
+    HMC_CHECK_MSG(k >= 0, "broad rig: unknown unit " + name);
+    catalog->broad[k] = std::move(field);
+    std::vector<std::string>& own = catalog->units[k].tags;
+    for (std::string& tag : tags) {
+      if (std::find(own.begin(), own.end(), tag) == own.end()) own.push_back(std::move(tag));
+    }
+  };
+  // Mirrored pairs: regions given for the left side, on both.
+  auto both = [](const std::vector<Region>& regions) {
+    return Sum(Regions(regions, 1.0), Regions(regions, -1.0));
+  };
+  // The temple, pulled towards the eye by the orbicularis (squint, blink,
+  // smile) or down by the jaw.
+  auto temple = [&](Vec3 d) { return Region{55, 95, et - 6, bt + 14, 12, d, d}; };
+  const std::pair<double, std::string> sides[] = {{1.0, "L"}, {-1.0, "R"}};
+  for (const auto& [sd, name] : sides) {
+    const std::string cheek = sd > 0 ? "cheek_l" : "cheek_r";
+    const std::string eye = sd > 0 ? "eye_l" : "eye_r";
+    const std::string other_cheek = sd > 0 ? "cheek_r" : "cheek_l";
+    // Brow raisers: the whole forehead up to the hairline, most at the brow.
+    set("AU01_inner_brow_raiser_" + name,
+        Regions({{-15, 40, bt - 8, top, 15, Vec3(0, 6, 0.5), Vec3(0, 2, 0)}}, sd),
+        {"forehead", "brow", "nose"});
+    set("AU02_outer_brow_raiser_" + name,
+        Regions({{20, 75, bt - 8, top, 15, Vec3(0.5, 5, 0), Vec3(0, 1.5, 0)}}, sd),
+        {"forehead", "brow", eye});
+    // Cheek raiser: the cheek from the mouth up to the lower lid, the temple in.
+    set("AU06_cheek_raiser_" + name,
+        Regions({{15, 80, mt, et - 4, 12, Vec3(0.5, 2, 1), Vec3(0, 3.5, 1)},
+                 temple(Vec3(-1.5, -0.5, 0))}, sd),
+        {cheek, eye, "forehead", "mouth"});
+    set("AU45_blink_" + name,
+        Regions({{15, 60, et - 12, bt + 10, 10, Vec3(0, -0.8, 0.2), Vec3(0, -0.8, 0.2)},
+                 temple(Vec3(-0.6, 0, 0))}, sd),
+        {eye, "brow", cheek, "forehead"});
+    // Smile: the lower face drawn sideways, the cheek lifted up to the lower
+    // lid, the crow's-feet region and temple pushed.
+    set("AU12_lip_corner_puller_" + name,
+        Regions({{0, 90, ct + 10, et - 4, 15, Vec3(2.5, 1.5, -0.5), Vec3(0.5, 3, 1.5)},
+                 {-30, 30, ct - 20, mt, 15, Vec3(1, 0.5, 0), Vec3(1, 0.5, 0)},
+                 temple(Vec3(-0.8, 0.8, 0))}, sd),
+        {cheek, eye, "chin", "jaw", "forehead", "nose"});
+    set("AU15_lip_corner_depressor_" + name,
+        Regions({{0, 80, ct - 25, mt + 5, 15, Vec3(0, -1, 0), Vec3(0.5, -3, -0.5)},
+                 {30, 80, mt, nt, 12, Vec3(0, -1, 0), Vec3(0, -1, 0)}}, sd),
+        {cheek, "jaw"});
+    set("AU20_lip_stretcher_" + name,
+        Regions({{0, 95, ct - 40, nt, 15, Vec3(2, -0.8, -0.5), Vec3(2, -0.8, -0.5)}}, sd),
+        {"chin", "jaw", other_cheek});
+    // Jaw sideways and mouth left/right: the whole lower face.
+    set("AU30_jaw_sideways_" + name,
+        Regions({{-110, 110, ct - 40, nt + 10, 15, Vec3(3.5, 0, 0), Vec3(1, 0, 0)}}, sd),
+        {"mouth", "cheek_l", "cheek_r"});
+    set(sd > 0 ? "mouth_left" : "mouth_right",
+        Regions({{-110, 110, ct - 40, nt + 10, 15, Vec3(1.5, 0, 0), Vec3(0.8, 0, 0)},
+                 {-45, 45, mt - 15, mt + 15, 12, Vec3(4, 0.5, -0.5), Vec3(4, 0.5, -0.5)}}, sd),
+        {});
+  }
+  set("AU04_brow_lowerer",
+      Symmetric({{0, 45, bt - 15, top, 15, Vec3(-2, -4, 0.5), Vec3(0, -1, 0)},
+                 {0, 10, et - 15, bt - 15, 8, Vec3(0, -1.5, 0.5), Vec3(0, -1.5, 0.5)}}),
+      {"nose", "eye_l", "eye_r"});
+  set("AU05_upper_lid_raiser",
+      both({{10, 60, et, top, 12, Vec3(0, 1.5, 0), Vec3(0, 0.5, 0)}}),
+      {"brow", "forehead"});
+  set("AU07_lid_tightener",
+      both({{10, 60, et - 15, et + 12, 10, Vec3(0, 1, 0.3), Vec3(0, -0.5, 0)},
+            {10, 60, bt - 5, bt + 30, 10, Vec3(0, -1, 0), Vec3(0, -0.3, 0)},
+            temple(Vec3(-1, 0, 0))}),
+      {"brow", "forehead", "cheek_l", "cheek_r"});
+  // Nose wrinkler: the nose bridge up, the inner brows down, the upper lip up.
+  set("AU09_nose_wrinkler",
+      Sum(Symmetric({{0, 14, nt - 5, bt - 5, 10, Vec3(0, 2.5, 0.5), Vec3(0, 1.5, 0.3)},
+                     {0, 30, bt - 3, bt + 25, 8, Vec3(-0.5, -1.5, 0), Vec3(-0.5, -1.5, 0)}}),
+          both({{10, 45, mt + 5, nt + 10, 12, Vec3(0, 1.5, 0.5), Vec3(0, 1.5, 0.5)}})),
+      {"forehead", "mouth", "cheek_l", "cheek_r", "eye_l", "eye_r"});
+  set("AU10_upper_lip_raiser",
+      Sum(Symmetric({{0, 50, mt, nt + 5, 12, Vec3(0, 3, 1), Vec3(0, 1.5, 0.5)}}),
+          both({{5, 20, nt, et, 10, Vec3(0, 0.8, 0), Vec3(0, 0.8, 0)}})),
+      {"cheek_l", "cheek_r"});
+  set("AU11_nasolabial_deepener",
+      both({{15, 60, mt, et - 8, 12, Vec3(0.5, 2, 1.5), Vec3(0.5, 2, 1.5)}}), {"nose"});
+  set("AU14_dimpler", both({{15, 70, ct, nt, 12, Vec3(1, 0, -1), Vec3(1, 0, -1)}}),
+      {"cheek_l", "cheek_r", "chin"});
+  set("AU16_lower_lip_depressor",
+      Symmetric({{0, 40, ct - 20, mt - 2, 12, Vec3(0, -1, 0), Vec3(0.5, -3, 1)}}), {"jaw"});
+  set("AU17_chin_raiser",
+      Symmetric({{0, 45, ct - 25, mt - 3, 12, Vec3(0, 2, 1.5), Vec3(0, 1.5, 1)}}), {"jaw"});
+  // Pucker and funnel draw the whole mouth region in.
+  set("AU18_lip_puckerer",
+      Symmetric({{0, 50, ct, nt, 15, Vec3(-2, 0, 1.5), Vec3(-2, 0, 1.5)}}),
+      {"cheek_l", "cheek_r", "chin"});
+  set("AU22_lip_funneler",
+      Symmetric({{0, 45, ct + 5, nt, 15, Vec3(-1.2, 0, 2), Vec3(-1.2, 0, 2)}}),
+      {"cheek_l", "cheek_r", "chin"});
+  set("AU23_lip_tightener",
+      Symmetric({{0, 40, mt - 15, mt + 15, 12, Vec3(-0.8, 0, -0.5), Vec3(-0.8, 0, -0.5)}}),
+      {});
+  set("AU24_lip_pressor",
+      Symmetric({{0, 40, ct, nt, 12, Vec3(0, 1.5, 0), Vec3(0, -1, 0)}}), {});
+  set("AU34_cheek_puff",
+      both({{20, 95, ct, et - 8, 15, Vec3::Zero(), Vec3::Zero(), 3.5}}), {"jaw", "chin"});
+  set("AU26_jaw_drop",
+      Sum(Symmetric({{0, 100, ct - 30, et - 5, 15, Vec3(0, -2.5, 0), Vec3(0, -0.5, 0)}}),
+          both({temple(Vec3(0, -0.5, 0.3))})),
+      {"cheek_l", "cheek_r", "forehead"});
+  set("AU27_mouth_stretch",
+      Sum(Symmetric({{0, 90, ct - 30, nt + 5, 15, Vec3(0, -2, 0), Vec3(0, -0.5, 0)}}),
+          both({temple(Vec3(0, -0.4, 0.3))})),
+      {"cheek_l", "cheek_r", "chin", "forehead"});
+  // Jaw forward: the whole lower face, most at the chin.
+  set("AU29_jaw_thrust",
+      Symmetric({{0, 110, ct - 40, nt + 10, 15, Vec3(0, 0, 4), Vec3(0, 0, 1)}}),
+      {"mouth", "cheek_l", "cheek_r"});
+  for (size_t k = 0; k < catalog->units.size(); ++k) {
+    HMC_CHECK_MSG(catalog->broad[k] != nullptr,
+                  "broad rig: no region for unit " + catalog->units[k].name);
+  }
 }
 
 }  // namespace hmc

@@ -48,6 +48,9 @@ struct DeformationTerm {
 struct UnitCatalog {
   std::vector<ActionUnit> units;
   std::vector<DeformationTerm> terms;
+  // The broad rig's artist-style region of each unit (mm at activation 1),
+  // parallel to `units`; empty unless AddBroadRegions was called.
+  std::vector<std::function<Vec3(const VertexContext&)>> broad;
   // Jaw pose from the K activations (jaw drop, mouth stretch, sideways,
   // thrust; opening saturates softly).
   std::function<JawPose(const Eigen::VectorXd&)> jaw_pose;
@@ -58,5 +61,15 @@ struct UnitCatalog {
 // The catalog for a face with proportions `p`; `detail_scale` scales every
 // fine-detail amplitude (1 = default).
 UnitCatalog BuildUnitCatalog(const FaceProportions& p, double detail_scale);
+
+// The broad rig (docs/synthetic.md, "Broad rig"): gives every unit of
+// `catalog` a broad, overlapping region as artists' FACS shapes move them
+// (a brow raise lifts the whole forehead to the hairline, a smile the cheek
+// up to the lower lid, the jaw units and mouth left/right the whole lower
+// face; squint, blink and jaw drop reach the temples, the brow lowerer and
+// nose wrinkler the nose bridge), widens the units' region tags to match,
+// and appends the units artists' rigs have that the generator lacks
+// (mouth_left, mouth_right: no terms, only a broad region).
+void AddBroadRegions(const FaceProportions& p, UnitCatalog* catalog);
 
 }  // namespace hmc

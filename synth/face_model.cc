@@ -23,13 +23,23 @@ double FaceModel::Saturate(double length) {
   return kSaturationKnee + room * std::tanh((length - kSaturationKnee) / room);
 }
 
+VertexContext FaceModel::ContextOf(int64_t v, const MatX3d& normals) const {
+  VertexContext context;
+  context.st = face_.st.row(v).transpose();
+  context.normal = normals.row(v).transpose();
+  context.jaw_weight = face_.jaw_rig.weights[v];
+  return context;
+}
+
 FaceModel::FaceModel(const SynthActorOptions& options)
     : face_(BuildFaceMesh(
           DrawFaceProportions(static_cast<uint64_t>(options.seed),
                               options.proportion_jitter),
           options.grid_u, options.grid_v)),
       catalog_(BuildUnitCatalog(face_.proportions, options.detail_scale)),
-      linear_(options.rig == "linear") {
+      linear_(options.rig == "linear" || options.rig == "broad"),
+      broad_(options.rig == "broad") {
+  if (broad_) AddBroadRegions(face_.proportions, &catalog_);
   const int num_vertices = NumVertices();
   const MatX3d normals = VertexNormals(face_.mesh.V, face_.mesh.F);
   const int num_terms = static_cast<int>(catalog_.terms.size());
@@ -37,10 +47,7 @@ FaceModel::FaceModel(const SynthActorOptions& options)
   // keeping the non-zero entries in term order.
   std::vector<std::vector<std::pair<int, Vec3>>> per_vertex(num_vertices);
   ParallelFor(0, num_vertices, [&](int64_t v) {
-    VertexContext context;
-    context.st = face_.st.row(v).transpose();
-    context.normal = normals.row(v).transpose();
-    context.jaw_weight = face_.jaw_rig.weights[v];
+    const VertexContext context = ContextOf(v, normals);
     for (int j = 0; j < num_terms; ++j) {
       const Vec3 f = catalog_.terms[j].field(context);
       if (f.squaredNorm() > 1e-16) per_vertex[v].emplace_back(j, f);
@@ -65,12 +72,18 @@ FaceModel::FaceModel(const SynthActorOptions& options)
 
 void FaceModel::BuildLinearRig() {
   const int num_vertices = NumVertices(), num_units = NumUnits();
+  const MatX3d normals = VertexNormals(face_.mesh.V, face_.mesh.F);
   std::vector<std::vector<std::pair<int, Vec3>>> per_vertex(num_vertices);
   for (int k = 0; k < num_units; ++k) {
     Eigen::VectorXd a = ZeroActivations();
     a[k] = 1.0;
-    const MatX3d extreme =
-        Skin(face_.jaw_rig, catalog_.jaw_pose(a), Displace(a));
+    MatX3d extreme = Skin(face_.jaw_rig, catalog_.jaw_pose(a), Displace(a));
+    if (broad_) {
+      // The broad rig: the unit's artist-style region on top of its extreme.
+      ParallelFor(0, num_vertices, [&](int64_t v) {
+        extreme.row(v) += catalog_.broad[k](ContextOf(v, normals)).transpose();
+      }, 1024);
+    }
     for (int v = 0; v < num_vertices; ++v) {
       const Vec3 d = (extreme.row(v) - face_.mesh.V.row(v)).transpose();
       if (d.squaredNorm() > 1e-16) per_vertex[v].emplace_back(k, d);

@@ -15,6 +15,12 @@
 // activation 1 (jaw skinning included) minus x0. No activation-dependent
 // detail, no interactions, no saturation, no jaw rig (JawPoseOf is zero):
 // in-betweens lie on the line and combinations are exactly sums.
+//
+// With rig "broad" the model is linear in the same way, but each unit's
+// extreme E_k also carries the unit's broad, overlapping region as artists'
+// FACS shapes move it (synth/action_units.h AddBroadRegions, docs/synthetic.md
+// "Broad rig"), and the catalog has the two units artists' rigs add
+// (mouth_left, mouth_right).
 #pragma once
 
 #include <string>
@@ -39,7 +45,8 @@ class FaceModel {
   // it); has_jaw_rig() says whether evaluations are skinned with it.
   const JawRig& jaw_rig() const { return face_.jaw_rig; }
   bool has_jaw_rig() const { return !linear_; }
-  bool linear() const { return linear_; }
+  bool linear() const { return linear_; }  // "linear" and "broad"
+  bool broad() const { return broad_; }
   int NumVertices() const { return face_.mesh.NumVertices(); }
 
   int NumUnits() const { return static_cast<int>(catalog_.units.size()); }
@@ -68,6 +75,7 @@ class FaceModel {
   // The linear rig's extremes, sparse per vertex as the terms' fields:
   // entries [unit_offsets_[v], unit_offsets_[v+1]) of unit_ and unit_field_.
   void BuildLinearRig();
+  VertexContext ContextOf(int64_t v, const MatX3d& normals) const;
 
   FaceMesh face_;
   UnitCatalog catalog_;
@@ -77,6 +85,7 @@ class FaceModel {
   std::vector<int> term_;
   std::vector<Vec3> field_;
   bool linear_ = false;
+  bool broad_ = false;
   std::vector<int64_t> unit_offsets_;
   std::vector<int> unit_;
   std::vector<Vec3> unit_field_;

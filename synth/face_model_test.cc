@@ -325,6 +325,25 @@ TEST(FaceModelTest, DeterministicBySeed) {
   EXPECT_GT((a.Evaluate(act) - c.Evaluate(act)).cwiseAbs().maxCoeff(), 0.5);
 }
 
+// Random combinations of a linear model's units (out-of-range activations
+// clamped) are the sums of their scaled extremes (`extreme`: the units'
+// displacements at activation 1).
+void ExpectCombinationsAreSums(const FaceModel& model, const std::vector<MatX3d>& extreme,
+                               int seed) {
+  const MatX3d& x0 = model.neutral().V;
+  const int K = model.NumUnits();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.2, 1.2);
+  for (int trial = 0; trial < 5; ++trial) {
+    Eigen::VectorXd a(K);
+    for (int k = 0; k < K; ++k) a[k] = u(rng);
+    MatX3d sum = MatX3d::Zero(x0.rows(), 3);
+    for (int k = 0; k < K; ++k) sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
+    EXPECT_LT(MaxRowNorm(model.Evaluate(a) - x0 - sum), 1e-9);
+    EXPECT_LT(MaxRowNorm(model.EvaluateUnskinned(a) - x0 - sum), 1e-9);
+  }
+}
+
 // The linear rig (docs/synthetic.md, "Linear rig"): each unit's extreme is
 // the generator's, in-betweens lie on the line and any combination is the
 // sum of its units' scaled extremes; no jaw rig, the jaw pose is zero.
@@ -358,19 +377,58 @@ TEST(FaceModelTest, LinearRigIsLinearInTheActivations) {
     }
     // The test can fail: the generator is not linear.
     EXPECT_GT(nonlinearity, 0.1);
-    // Random combinations (out-of-range activations clamped) are sums.
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-0.2, 1.2);
-    for (int trial = 0; trial < 5; ++trial) {
-      Eigen::VectorXd a(K);
-      for (int k = 0; k < K; ++k) a[k] = u(rng);
-      MatX3d sum = MatX3d::Zero(x0.rows(), 3);
-      for (int k = 0; k < K; ++k) {
-        sum += std::clamp(a[k], 0.0, 1.0) * extreme[k];
-      }
-      EXPECT_LT(MaxRowNorm(linear.Evaluate(a) - x0 - sum), 1e-9);
-      EXPECT_LT(MaxRowNorm(linear.EvaluateUnskinned(a) - x0 - sum), 1e-9);
+    ExpectCombinationsAreSums(linear, extreme, seed);
+  }
+}
+
+// The broad rig (docs/synthetic.md, "Broad rig"): linear like the linear
+// rig, with the generator's units in their order plus mouth_left/right, and
+// each unit's extreme the linear rig's plus a broad region that moves far
+// more of the face.
+TEST(FaceModelTest, BroadRigIsLinearWithBroaderExtremes) {
+  for (int seed : {4, 9, 17}) {
+    SynthActorOptions options = SmallOptions(seed);
+    options.rig = "linear";
+    const FaceModel linear(options);
+    options.rig = "broad";
+    const FaceModel broad(options);
+    EXPECT_TRUE(broad.linear());
+    EXPECT_TRUE(broad.broad());
+    EXPECT_FALSE(linear.broad());
+    EXPECT_FALSE(broad.has_jaw_rig());
+    ASSERT_EQ(broad.NumUnits(), linear.NumUnits() + 2);
+    for (int k = 0; k < linear.NumUnits(); ++k) {
+      EXPECT_EQ(broad.units()[k].name, linear.units()[k].name);
     }
+    EXPECT_GE(broad.FindUnit("mouth_left"), linear.NumUnits());
+    EXPECT_GE(broad.FindUnit("mouth_right"), linear.NumUnits());
+    const MatX3d& x0 = broad.neutral().V;
+    EXPECT_EQ(broad.neutral().V, linear.neutral().V);
+    const int K = broad.NumUnits();
+    std::vector<MatX3d> extreme(K);
+    int broader = 0;
+    for (int k = 0; k < K; ++k) {
+      Eigen::VectorXd a = broad.ZeroActivations();
+      a[k] = 1.0;
+      extreme[k] = broad.Evaluate(a) - x0;
+      a[k] = 0.5;
+      EXPECT_LT(MaxRowNorm(broad.Evaluate(a) - x0 - 0.5 * extreme[k]), 1e-12);
+      EXPECT_TRUE(broad.JawPoseOf(a).IsZero());
+      // Vertices moved by more than 0.5 mm, here and on the linear rig.
+      const auto moved = [](const MatX3d& d) {
+        return (d.rowwise().norm().array() > 0.5).count();
+      };
+      long on_linear = 0;
+      if (k < linear.NumUnits()) {
+        Eigen::VectorXd b = linear.ZeroActivations();
+        b[k] = 1.0;
+        on_linear = moved(linear.Evaluate(b) - x0);
+      }
+      if (moved(extreme[k]) > 2 * on_linear) ++broader;
+    }
+    // Most units move at least twice the area they move on the linear rig.
+    EXPECT_GE(broader, 3 * K / 4) << seed;
+    ExpectCombinationsAreSums(broad, extreme, seed);
   }
 }
 

@@ -36,7 +36,11 @@ void SynthActorOptions::Register(OptionFields* fields) {
   fields->Add("rig", &rig,
               "generator: the nonlinear generator with its jaw rig; linear: "
               "each unit's extreme as a fixed displacement, summed (no "
-              "activation-dependent detail, no jaw rig)");
+              "activation-dependent detail, no jaw rig); broad: linear too, "
+              "each unit moving a broad, overlapping region as artists' FACS "
+              "shapes do (the forehead to the hairline, the whole lower "
+              "face, the temples and nose bridge), plus mouth_left/right; "
+              "shapes without region tags");
   fields->Add("holdout", &holdout,
               "action units held out of the dataset (drawn from the seed, "
               "never a jaw unit)");
@@ -96,8 +100,8 @@ bool SynthActorOptions::Check() const {
   if (shapes < 0 || shapes > kMaxShapes) {
     fail(fmt::format("shapes must be in [0, {}]", kMaxShapes));
   }
-  if (rig != "generator" && rig != "linear") {
-    fail("rig must be generator or linear, not '" + rig + "'");
+  if (rig != "generator" && rig != "linear" && rig != "broad") {
+    fail("rig must be generator, linear or broad, not '" + rig + "'");
   }
   if (holdout < 0 || holdout > kMaxHoldout) {
     fail(fmt::format("holdout must be in [0, {}]", kMaxHoldout));
@@ -202,9 +206,13 @@ const std::vector<std::string>& FineInbetweenUnits() {
   return units;
 }
 
+// A shape's region tags: the union of its units'. The broad rig's shapes
+// have none, as artists' rigs exported from a DCC (docs/synthetic.md,
+// "Broad rig").
 std::vector<std::string> UnionTags(const FaceModel& model,
                                    const Eigen::VectorXd& a) {
   std::vector<std::string> tags;
+  if (model.broad()) return tags;
   for (int k = 0; k < model.NumUnits(); ++k) {
     if (a[k] == 0) continue;
     for (const std::string& tag : model.units()[k].tags) {

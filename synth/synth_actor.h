@@ -29,7 +29,7 @@ struct SynthActorOptions {
   bool dataset_inbetweens = true;   // add 50% (and some 25/75%) in-between shapes
   bool dataset_combos = true;       // add the combination shapes
   int shapes = 0;  // dataset size: 0 = the standard plan; more extends it with seeded in-betweens, pairwise and triple combinations (docs/synthetic.md, "Larger datasets")
-  std::string rig = "generator";  // "generator" (nonlinear detail, jaw rig) or "linear" (extremes as fixed displacements, no jaw rig)
+  std::string rig = "generator";  // "generator" (nonlinear detail, jaw rig), "linear" (extremes as fixed displacements, no jaw rig) or "broad" (linear, artist-style broad overlapping units; docs/synthetic.md)
   int holdout = 0;                  // action units held out of the dataset (drawn from the seed, never a jaw unit)
   std::string holdout_units;        // comma-separated unit names held out (overrides the draw; synth.yaml records the resolved list)
 

@@ -77,12 +77,15 @@ TEST(SynthActorTest, ShapesAreTheModelsEvaluations) {
   }
 }
 
-// A linear-rig actor: no jaw rig, zero jaw poses, in-betweens on the line
-// to their extreme and combinations the sums of their units' extremes.
+// A linear-rig or broad-rig actor: no jaw rig, zero jaw poses, in-betweens
+// on the line to their extreme and combinations the sums of their units'
+// extremes.
 TEST(SynthActorTest, LinearRigDatasetIsLinear) {
-  for (int seed : {1, 2}) {
+  for (const auto& [rig, seed] : {std::make_pair("linear", 1), std::make_pair("linear", 2),
+                                  std::make_pair("broad", 3), std::make_pair("broad", 4)}) {
+    SCOPED_TRACE(rig);
     SynthActorOptions options = Small(seed);
-    options.rig = "linear";
+    options.rig = rig;
     ASSERT_TRUE(options.Check());
     const FaceModel model(options);
     const Actor actor = SynthesizeActorFromModel(model, options);
@@ -125,26 +128,172 @@ TEST(SynthActorTest, LinearRigDatasetIsLinear) {
   EXPECT_FALSE(bad.Check());
 }
 
+// Each marker's motion (mm) in each shape: the displacement at its point.
+std::vector<std::vector<Vec3>> MarkerMotion(const Actor& actor) {
+  std::vector<std::vector<Vec3>> motion(actor.shapes.size());
+  for (size_t n = 0; n < actor.shapes.size(); ++n) {
+    for (const Marker& m : actor.markers) {
+      motion[n].push_back(
+          EvaluateSurfacePoint(m.point, actor.neutral.F, actor.shapes[n].displacement));
+    }
+  }
+  return motion;
+}
+
+// What makes the broad rig an artist's rig (docs/synthetic.md, "Broad rig"):
+// the stable-tagged markers move in many shapes (on the generator, in none),
+// a brow raise lifts the whole forehead to the top row, a smile lifts the
+// cheek up to the lower lid, jaw forward and mouth left/right move the whole
+// lower face, cheek puff, nose wrinkle and squint reach the cheeks, nose
+// bridge and temples, and most markers are moved by several units.
+TEST(SynthActorTest, BroadRigMovesBroadOverlappingRegions) {
+  for (int seed : {3, 8, 21}) {
+    SCOPED_TRACE(seed);
+    SynthActorOptions options = Small(seed);
+    options.rig = "broad";
+    const FaceModel model(options);
+    const Actor actor = SynthesizeActorFromModel(model, options);
+    const std::vector<std::vector<Vec3>> motion = MarkerMotion(actor);
+    const int num_markers = static_cast<int>(actor.markers.size());
+    auto shape = [&](const std::string& name) {
+      const int n = actor.FindShape(name);
+      EXPECT_GE(n, 0) << name;
+      return std::max(n, 0);
+    };
+    auto height = [&](int j) {
+      return EvaluateSurfacePoint(actor.markers[j].point, actor.neutral.F, actor.neutral.V).y();
+    };
+    auto starts = [&](int j, const std::string& prefix) {
+      return actor.markers[j].name.rfind(prefix, 0) == 0;
+    };
+    for (const Shape& s : actor.shapes) EXPECT_TRUE(s.tags.empty()) << s.name;
+
+    // Stable markers that move by more than 1 mm in at least 10 shapes: half
+    // of them on the broad rig, none with the same layout on the generator.
+    auto stable_moving = [](const Actor& a, const std::vector<std::vector<Vec3>>& m) {
+      int moving = 0;
+      for (size_t j = 0; j < a.markers.size(); ++j) {
+        if (!a.markers[j].HasTag("stable")) continue;
+        int shapes = 0;
+        for (const auto& shape_motion : m) shapes += shape_motion[j].norm() > 1.0;
+        moving += shapes >= 10;
+      }
+      return moving;
+    };
+    const int stable = static_cast<int>(std::count_if(
+        actor.markers.begin(), actor.markers.end(),
+        [](const Marker& m) { return m.HasTag("stable"); }));
+    EXPECT_GE(stable, 15);
+    EXPECT_GE(stable_moving(actor, motion), stable / 2);
+    const Actor generator = SynthesizeActor(Small(seed));
+    EXPECT_EQ(stable_moving(generator, MarkerMotion(generator)), 0);
+    RecordProperty("stable_moving_broad", std::to_string(stable_moving(actor, motion)));
+
+    const auto& brow = motion[shape("combo_brow_raise")];
+    const auto& smile = motion[shape("AU12_lip_corner_puller_L_100")];
+    const auto& thrust = motion[shape("AU29_jaw_thrust_100")];
+    const auto& left = motion[shape("mouth_left_100")];
+    const auto& right = motion[shape("mouth_right_100")];
+    const auto& puff = motion[shape("AU34_cheek_puff_100")];
+    const auto& wrinkle = motion[shape("AU09_nose_wrinkler_100")];
+    const auto& squint = motion[shape("AU07_lid_tightener_100")];
+    const double nose_tip = model.face().proportions.nose_tip_t;
+    int forehead = 0, lids = 0, lower = 0, bridges = 0, temples = 0;
+    for (int j = 0; j < num_markers; ++j) {
+      const std::string& name = actor.markers[j].name;
+      if (starts(j, "forehead")) {  // every row, the top one (stable) too
+        ++forehead;
+        EXPECT_GT(brow[j].y(), 1.5) << name;
+      }
+      // The lower lid and below the left eye, and the left cheek.
+      for (const char* lid : {"eye_l_04", "eye_l_05", "eye_l_06", "eye_l_09", "eye_l_10",
+                              "eye_l_11"}) {
+        if (name == lid) {
+          ++lids;
+          EXPECT_GT(smile[j].y(), 0.5) << name;
+        }
+      }
+      if (starts(j, "cheek_l")) {
+        EXPECT_GT(smile[j].norm(), 1.0) << name;
+      }
+      if (starts(j, "cheek_")) {
+        EXPECT_GT(puff[j].norm(), 1.5) << name;
+      }
+      // The whole lower face: every marker below the nose tip.
+      if (height(j) < nose_tip) {
+        ++lower;
+        EXPECT_GT(thrust[j].z(), 1.0) << name;
+        EXPECT_GT(left[j].x(), 0.5) << name;
+        EXPECT_LT(right[j].x(), -0.5) << name;
+      }
+      if (starts(j, "nose_bridge")) {
+        ++bridges;
+        EXPECT_GT(wrinkle[j].y(), 1.0) << name;
+      }
+      if (starts(j, "temple")) {
+        ++temples;
+        EXPECT_GT(squint[j].norm(), 0.5) << name;
+      }
+    }
+    EXPECT_GE(forehead, 25);
+    EXPECT_EQ(lids, 6);
+    EXPECT_GE(lower, 60);
+    EXPECT_EQ(bridges, 3);
+    EXPECT_EQ(temples, 4);
+
+    // Overlap: markers moved by more than 0.5 mm by at least two units'
+    // extremes, against the linear rig of the same seed.
+    auto overlapped = [&](const Actor& a, const std::vector<std::vector<Vec3>>& m) {
+      int count = 0;
+      for (int j = 0; j < num_markers; ++j) {
+        int units = 0;
+        for (size_t n = 0; n < a.shapes.size(); ++n) {
+          const std::string& name = a.shapes[n].name;
+          if (name.size() > 4 && name.compare(name.size() - 4, 4, "_100") == 0) {
+            units += m[n][j].norm() > 0.5;
+          }
+        }
+        count += units >= 2;
+      }
+      return static_cast<double>(count) / num_markers;
+    };
+    SynthActorOptions linear_options = Small(seed);
+    linear_options.rig = "linear";
+    const Actor linear = SynthesizeActor(linear_options);
+    const double broad_overlap = overlapped(actor, motion);
+    const double linear_overlap = overlapped(linear, MarkerMotion(linear));
+    EXPECT_GE(broad_overlap, 0.95);
+    EXPECT_GT(broad_overlap, linear_overlap + 0.1);
+    RecordProperty("overlap_broad", std::to_string(broad_overlap));
+    RecordProperty("overlap_linear", std::to_string(linear_overlap));
+  }
+}
+
 TEST(SynthActorTest, DeterministicBySeed) {
-  const Actor a = SynthesizeActor(Small(5)), b = SynthesizeActor(Small(5));
-  const Actor c = SynthesizeActor(Small(6));
-  EXPECT_EQ(a.neutral.V, b.neutral.V);
-  ASSERT_EQ(a.shapes.size(), b.shapes.size());
-  for (size_t n = 0; n < a.shapes.size(); ++n) {
-    EXPECT_EQ(a.shapes[n].displacement, b.shapes[n].displacement);
+  for (const std::string rig : {"generator", "broad"}) {
+    SCOPED_TRACE(rig);
+    SynthActorOptions five = Small(5), six = Small(6);
+    five.rig = six.rig = rig;
+    const Actor a = SynthesizeActor(five), b = SynthesizeActor(five);
+    const Actor c = SynthesizeActor(six);
+    EXPECT_EQ(a.neutral.V, b.neutral.V);
+    ASSERT_EQ(a.shapes.size(), b.shapes.size());
+    for (size_t n = 0; n < a.shapes.size(); ++n) {
+      EXPECT_EQ(a.shapes[n].displacement, b.shapes[n].displacement);
+    }
+    for (size_t m = 0; m < a.markers.size(); ++m) {
+      EXPECT_EQ(a.markers[m].point.face, b.markers[m].point.face);
+      EXPECT_EQ(a.markers[m].point.bary, b.markers[m].point.bary);
+    }
+    EXPECT_GT((a.neutral.V - c.neutral.V).cwiseAbs().maxCoeff(), 0.5);
+    double shape_difference = 0;
+    for (size_t n = 0; n < a.shapes.size(); ++n) {
+      shape_difference = std::max(
+          shape_difference,
+          (a.shapes[n].displacement - c.shapes[n].displacement).cwiseAbs().maxCoeff());
+    }
+    EXPECT_GT(shape_difference, 0.1);
   }
-  for (size_t m = 0; m < a.markers.size(); ++m) {
-    EXPECT_EQ(a.markers[m].point.face, b.markers[m].point.face);
-    EXPECT_EQ(a.markers[m].point.bary, b.markers[m].point.bary);
-  }
-  EXPECT_GT((a.neutral.V - c.neutral.V).cwiseAbs().maxCoeff(), 0.5);
-  double shape_difference = 0;
-  for (size_t n = 0; n < a.shapes.size(); ++n) {
-    shape_difference = std::max(
-        shape_difference,
-        (a.shapes[n].displacement - c.shapes[n].displacement).cwiseAbs().maxCoeff());
-  }
-  EXPECT_GT(shape_difference, 0.1);
 }
 
 TEST(SynthActorTest, OptionsCheckAndYamlRoundTrip) {

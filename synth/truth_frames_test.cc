@@ -19,9 +19,11 @@ struct Fixture {
   std::vector<DatasetEntry> plan;
 };
 
-Fixture Make(int seed, int holdout = 0, const std::string& holdout_units = "") {
+Fixture Make(int seed, int holdout = 0, const std::string& holdout_units = "",
+             const std::string& rig = "generator") {
   Fixture f;
   f.synth.seed = seed;
+  f.synth.rig = rig;
   f.synth.holdout = holdout;
   f.synth.holdout_units = holdout_units;
   f.synth.grid_u = 48;
@@ -253,6 +255,44 @@ TEST(TruthFramesTest, PerformanceDrawsHeldOutUnitsIntoItsEvents) {
     // A held-out event of at least 0.2 s hold lies inside the 2 s take.
     EXPECT_GE(frames_with_held, 6) << seed;
   }
+}
+
+// --holdout with the broad rig: the drawn units (never a jaw unit, the
+// broad rig's own mouth_left/right among the candidates) leave the dataset,
+// the performance draws them into its events, heldout and mixed frames use
+// them, and every kind runs.
+TEST(TruthFramesTest, BroadRigHoldsOutUnitsAsTheOtherRigs) {
+  for (int seed : {2, 6, 12}) {
+    SCOPED_TRACE(seed);
+    const Fixture f = Make(seed, 4, "", "broad");
+    const std::vector<int> held = HeldOutUnits(*f.model, f.synth);
+    ASSERT_EQ(held.size(), 4u);
+    for (int k : held) EXPECT_FALSE(f.model->units()[k].drives_jaw);
+    EXPECT_EQ(UnitsNotInDataset(*f.model, f.plan), held);
+    TruthFramesOptions options;
+    options.kind = "performance";
+    options.frames = 90;
+    options.seed = seed + 1;
+    int frames_with_held = 0;
+    for (const Eigen::VectorXd& a : TruthActivations(*f.model, f.plan, options)) {
+      frames_with_held += CountIn(a, held, true) > 0;
+    }
+    EXPECT_GE(frames_with_held, 6);
+    options.kind = "heldout";
+    for (const Eigen::VectorXd& a : TruthActivations(*f.model, f.plan, options)) {
+      EXPECT_EQ(CountIn(a, held, false), 0);
+      EXPECT_GE(CountIn(a, held, true), 1);
+    }
+    for (const std::string& kind : TruthFrameKinds()) {
+      options.kind = kind;
+      options.frames = 8;
+      const TruthFrames frames = MakeTruthFrames(*f.model, f.markers, f.plan, options);
+      EXPECT_FALSE(frames.activations.empty()) << kind;
+    }
+  }
+  // The broad rig's extra units can be named.
+  const Fixture f = Make(1, 0, "mouth_left,AU09_nose_wrinkler", "broad");
+  EXPECT_EQ(HeldOutUnits(*f.model, f.synth).size(), 2u);
 }
 
 TEST(TruthFramesTest, EmptyPlanHoldsNothingOut) {

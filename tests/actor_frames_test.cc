@@ -1,6 +1,7 @@
 // `hmc actor synth --holdout` and `hmc actor frames` as a user runs them on a
-// small synthetic actor: the held-out package records its units, passes
-// `hmc actor check` and indexes; heldout frames activate only those units;
+// small synthetic actor of each rig (generator, linear, broad): the held-out
+// package records its units, passes `hmc actor check` without a warning and
+// indexes; every kind of frames runs; heldout frames activate only those units;
 // --noise-mm gives bundles whose difference from the noise-free bundles has
 // the requested std; heldout/mixed frames of an actor without held-out units
 // are refused with a message naming synth.yaml.
@@ -43,12 +44,13 @@ class ActorFramesCli : public ::testing::Test {
   }
 
   // A small package (40 x 32 grid, no combinations: quick to index).
-  fs::path Synth(const std::string& name, int seed, int holdout) {
+  fs::path Synth(const std::string& name, int seed, int holdout,
+                 const std::string& rig = "generator") {
     const fs::path dir = scratch_ / name;
     const CliResult result = RunHmc(
         fmt::format("-q actor synth --out '{}' --seed {} --grid_u 40 --grid_v 32 "
-                    "--dataset_combos false --holdout {}",
-                    dir.string(), seed, holdout),
+                    "--dataset_combos false --holdout {} --rig {}",
+                    dir.string(), seed, holdout, rig),
         scratch_);
     EXPECT_EQ(result.exit_code, 0) << result.err;
     return dir;
@@ -65,8 +67,11 @@ std::vector<std::string> SplitCsvLine(const std::string& line) {
   return cells;
 }
 
-TEST_F(ActorFramesCli, HoldoutPackageChecksIndexesAndGivesHeldOutFrames) {
-  const fs::path actor_dir = Synth("actor", 3, 2);
+class ActorFramesRigCli : public ActorFramesCli,
+                          public ::testing::WithParamInterface<const char*> {};
+
+TEST_P(ActorFramesRigCli, HoldoutPackageChecksIndexesAndGivesHeldOutFrames) {
+  const fs::path actor_dir = Synth("actor", 3, 2, GetParam());
   const SynthActorOptions synth = ReadSynthActorOptions(actor_dir);
   EXPECT_EQ(synth.holdout, 2);
   std::set<std::string> held;
@@ -87,7 +92,10 @@ TEST_F(ActorFramesCli, HoldoutPackageChecksIndexesAndGivesHeldOutFrames) {
   const CliResult check =
       RunHmc(fmt::format("-q actor check '{}' --json", actor_dir.string()), scratch_);
   ASSERT_EQ(check.exit_code, 0) << check.err;
-  EXPECT_EQ(nlohmann::json::parse(check.out).at("shapes"), actor.shapes.size());
+  const nlohmann::json summary = nlohmann::json::parse(check.out);
+  EXPECT_EQ(summary.at("shapes"), actor.shapes.size());
+  // The generator's packages are what a studio should write: no warning.
+  EXPECT_TRUE(summary.at("warnings").empty()) << summary.at("warnings").dump();
   const CliResult index =
       RunHmc(fmt::format("-q index --actor '{}'", actor_dir.string()), scratch_);
   EXPECT_EQ(index.exit_code, 0) << index.err;
@@ -138,7 +146,20 @@ TEST_F(ActorFramesCli, HoldoutPackageChecksIndexesAndGivesHeldOutFrames) {
     }
   }
   EXPECT_NEAR(std::sqrt(sum_sq / n), 0.5, 5 * 0.5 / std::sqrt(2.0 * n));
+
+  // Every other kind runs on the package too.
+  for (const std::string kind : {"dataset", "combos", "performance", "mixed"}) {
+    const CliResult frames = RunHmc(
+        fmt::format("-q actor frames --actor '{}' --out '{}' --kind {} --frames 6 --seed 2",
+                    actor_dir.string(), (scratch_ / kind).string(), kind),
+        scratch_);
+    EXPECT_EQ(frames.exit_code, 0) << kind << ": " << frames.err;
+    EXPECT_TRUE(fs::exists(scratch_ / kind / "bundles.csv")) << kind;
+  }
 }
+
+INSTANTIATE_TEST_SUITE_P(Rigs, ActorFramesRigCli,
+                         ::testing::Values("generator", "linear", "broad"));
 
 TEST_F(ActorFramesCli, HeldOutKindsRefuseAnActorWithoutHeldOutUnits) {
   const fs::path actor_dir = Synth("plain", 1, 0);
