@@ -8,6 +8,7 @@
 #include "blending/correction_smoothing.h"
 #include "blending/robust_solver.h"
 #include "blending/robust_solver_state.h"
+#include "core/error_stats.h"
 
 namespace hmc {
 
@@ -75,8 +76,7 @@ double RobustSolver::ChoiceNoiseVariance(const Sequence& seq) const {
     }
   }
   if (v.empty()) return s2;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return std::min(s2, v[v.size() / 2]);
+  return std::min(s2, UpperMedian(&v));
 }
 
 }  // namespace hmc
