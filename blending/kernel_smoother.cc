@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/error_stats.h"
 #include "core/parallel.h"
 
 namespace hmc {
@@ -31,9 +32,7 @@ double MedianNearestSiteDistance(const MatX3d& sites, double fallback) {
     if (std::isfinite(best)) nearest.push_back(best);
   }
   if (nearest.empty()) return fallback;
-  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2,
-                   nearest.end());
-  return nearest[nearest.size() / 2];
+  return UpperMedian(&nearest);
 }
 
 Eigen::SparseMatrix<double, Eigen::RowMajor> GaussianKernelMatrix(

@@ -77,6 +77,10 @@
 //      surface passes through every bundle again, projected ones included.
 //   6. Skin with the frame's jaw pose.
 // Bad frames follow the lgi conventions (flagged, previous good mesh kept).
+// Each step's code is in the file named after it (robust_global_fit.cc,
+// robust_noise.cc, robust_local_choice.cc, robust_temporal.cc,
+// robust_correction.cc, robust_blend.cc; docs/method.md "The robust
+// default" lists them); robust_solver.cc runs them in order.
 #pragma once
 
 #include <map>

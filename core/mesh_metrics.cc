@@ -26,29 +26,6 @@ bool MeshMetricsOptions::Check() const {
   return true;
 }
 
-ErrorStats ComputeErrorStats(std::vector<double>* values) {
-  ErrorStats s;
-  const size_t n = values->size();
-  if (n == 0) return s;
-  s.count = static_cast<int64_t>(n);
-  double sum = 0, sum2 = 0, mx = 0;
-  for (double x : *values) {
-    sum += x;
-    sum2 += x * x;
-    mx = std::max(mx, x);
-  }
-  s.mean = sum / n;
-  s.rms = std::sqrt(sum2 / n);
-  s.max = mx;
-  // Nearest rank: the smallest value with at least 95% of the set at or
-  // below it.
-  const size_t rank = static_cast<size_t>(std::ceil(0.95 * n));
-  const size_t index = std::max<size_t>(rank, 1) - 1;
-  std::nth_element(values->begin(), values->begin() + index, values->end());
-  s.p95 = (*values)[index];
-  return s;
-}
-
 Eigen::VectorXd VertexErrors(const MatX3d& truth, const MatX3d& recon) {
   HMC_CHECK(truth.rows() == recon.rows());
   return (truth - recon).rowwise().norm();

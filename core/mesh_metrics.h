@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/error_stats.h"  // ErrorStats, ComputeErrorStats
 #include "core/mesh.h"
 #include "core/options.h"
 #include "core/types.h"
@@ -37,19 +38,6 @@ struct MeshMetricsOptions {
   void Register(OptionFields* fields);
   bool Check() const;
 };
-
-// Mean, RMS, 95th percentile (nearest rank) and maximum of a set of
-// non-negative values (mm); all zero for an empty set.
-struct ErrorStats {
-  int64_t count = 0;
-  double mean = 0.0;
-  double rms = 0.0;
-  double p95 = 0.0;
-  double max = 0.0;
-};
-
-// Statistics of `values`; the vector is reordered (partial sort).
-ErrorStats ComputeErrorStats(std::vector<double>* values);
 
 // |truth(v) - recon(v)| per vertex. truth, recon: V x 3 (mm). Returns V.
 Eigen::VectorXd VertexErrors(const MatX3d& truth, const MatX3d& recon);

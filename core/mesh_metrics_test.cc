@@ -30,35 +30,6 @@ TriMesh Grid(int n) {
 
 class MetricsSeeded : public ::testing::TestWithParam<int> {};
 
-TEST_P(MetricsSeeded, StatsAgreeWithSorting) {
-  std::mt19937 rng(GetParam());
-  std::uniform_int_distribution<int> size(1, 500);
-  std::exponential_distribution<double> value(0.7);
-  for (int trial = 0; trial < 20; ++trial) {
-    std::vector<double> v(size(rng));
-    for (double& x : v) x = value(rng);
-    std::vector<double> sorted = v;
-    std::sort(sorted.begin(), sorted.end());
-    double sum = 0, sum2 = 0;
-    for (double x : sorted) {
-      sum += x;
-      sum2 += x * x;
-    }
-    const size_t n = sorted.size();
-    // Nearest rank: smallest value with at least 95% at or below it.
-    size_t rank = 1;
-    while (static_cast<double>(rank) < 0.95 * n) ++rank;
-    const ErrorStats s = ComputeErrorStats(&v);
-    EXPECT_EQ(s.count, static_cast<int64_t>(n));
-    EXPECT_NEAR(s.mean, sum / n, 1e-12 * (1 + sum));
-    EXPECT_NEAR(s.rms, std::sqrt(sum2 / n), 1e-12 * (1 + sum2));
-    EXPECT_EQ(s.max, sorted.back());
-    EXPECT_EQ(s.p95, sorted[rank - 1]);
-  }
-  std::vector<double> empty;
-  EXPECT_EQ(ComputeErrorStats(&empty).count, 0);
-}
-
 TEST_P(MetricsSeeded, VertexErrorsAndResidualsAgreeWithBruteForce) {
   std::mt19937 rng(GetParam());
   std::normal_distribution<double> noise(0, 1);

@@ -6,18 +6,10 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/error_stats.h"
 #include "core/parallel.h"
 
 namespace hmc {
-namespace {
-
-double Mean(const std::vector<double>& v) {
-  double sum = 0;
-  for (double x : v) sum += x;
-  return v.empty() ? 0.0 : sum / v.size();
-}
-
-}  // namespace
 
 SequenceEvaluator::SequenceEvaluator(const Actor& actor,
                                      const MeshMetricsOptions& options)
@@ -79,7 +71,7 @@ SequenceMetrics SequenceEvaluator::Evaluate(
     e.all = ComputeErrorStats(&scratch);
     p.detail = DetailErrors(laplacian_, t, r);
     p.detail_face = Select(p.detail, face_);
-    e.detail_face = Mean(p.detail_face);
+    e.detail_face = MeanOf(p.detail_face);
     e.detail_all = p.detail.mean();
     // Bundle targets: the truth's surface points, or the given bundles.
     MatX3d targets(K, 3);
@@ -124,7 +116,7 @@ SequenceMetrics SequenceEvaluator::Evaluate(
   out.face = ComputeErrorStats(&pool_face);
   out.all = ComputeErrorStats(&pool_all);
   out.bundle = ComputeErrorStats(&pool_bundle);
-  out.detail_face = Mean(pool_detail_face);
+  out.detail_face = MeanOf(pool_detail_face);
   out.detail_all =
       F > 0 && V > 0 ? detail_all_sum / (static_cast<double>(F) * V) : 0.0;
   std::vector<char> face_mask(face_.begin(), face_.end());

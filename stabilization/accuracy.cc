@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "core/error_stats.h"
+
 namespace hmc {
 
 std::string PoseError::BriefReport() const {
@@ -19,25 +21,21 @@ PoseError ComparePoses(const std::vector<PoseFrame>& estimate,
                        const std::vector<PoseFrame>& truth) {
   std::map<int, Rigid3> by_frame;
   for (const PoseFrame& t : truth) by_frame[t.frame] = t.pose;
-  PoseError error;
-  double sum_t = 0, sum_r = 0;
+  ErrorAccumulator translation, rotation;
   for (const PoseFrame& e : estimate) {
     const auto it = by_frame.find(e.frame);
     if (it == by_frame.end()) continue;
     const Rigid3 diff = e.pose * it->second.inverse();
-    const double t = diff.translation().norm();
     const double cos_angle = std::clamp((diff.linear().trace() - 1) / 2, -1.0, 1.0);
-    const double r = std::acos(cos_angle) * 180 / M_PI;
-    sum_t += t * t;
-    sum_r += r * r;
-    error.translation_max_mm = std::max(error.translation_max_mm, t);
-    error.rotation_max_deg = std::max(error.rotation_max_deg, r);
-    ++error.frames;
+    translation.Add(diff.translation().norm());
+    rotation.Add(std::acos(cos_angle) * 180 / M_PI);
   }
-  if (error.frames > 0) {
-    error.translation_rms_mm = std::sqrt(sum_t / error.frames);
-    error.rotation_rms_deg = std::sqrt(sum_r / error.frames);
-  }
+  PoseError error;
+  error.frames = static_cast<int>(translation.count);
+  error.translation_rms_mm = translation.Rms();
+  error.rotation_rms_deg = rotation.Rms();
+  error.translation_max_mm = translation.max;
+  error.rotation_max_deg = rotation.max;
   return error;
 }
 
@@ -52,21 +50,18 @@ JawError CompareJaw(const std::vector<JawFrame>& estimate,
                     const std::vector<JawFrame>& truth) {
   std::map<int, JawPose> by_frame;
   for (const JawFrame& t : truth) by_frame[t.frame] = t.pose;
-  JawError error;
-  std::array<double, 3> sum{};
+  std::array<ErrorAccumulator, 3> sums;
   for (const JawFrame& e : estimate) {
     const auto it = by_frame.find(e.frame);
     if (it == by_frame.end()) continue;
     const std::array<double, 3> a = e.pose.ToArray(), b = it->second.ToArray();
-    for (int i = 0; i < 3; ++i) {
-      const double d = std::abs(a[i] - b[i]);
-      sum[i] += d * d;
-      error.max[i] = std::max(error.max[i], d);
-    }
-    ++error.frames;
+    for (int i = 0; i < 3; ++i) sums[i].Add(std::abs(a[i] - b[i]));
   }
+  JawError error;
+  error.frames = static_cast<int>(sums[0].count);
   for (int i = 0; i < 3; ++i) {
-    error.rms[i] = error.frames > 0 ? std::sqrt(sum[i] / error.frames) : 0.0;
+    error.rms[i] = sums[i].Rms();
+    error.max[i] = sums[i].max;
   }
   return error;
 }
