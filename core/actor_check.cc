@@ -68,19 +68,20 @@ void CheckOrigin(const Actor& actor, std::vector<ActorWarning>* out) {
 void CheckOrientation(const Actor& actor, std::vector<ActorWarning>* out) {
   // Up: from the jaw markers (or chin, mouth) to the stable ones (or
   // forehead, brow): the head's vertical on any face hmc can stabilize.
-  Vec3 upper, lower;
-  if (MeanOfTagged(actor, {"stable"}, &upper) || MeanOfTagged(actor, {"forehead", "brow"}, &upper)) {
-    if (MeanOfTagged(actor, {"jaw"}, &lower) || MeanOfTagged(actor, {"chin", "mouth"}, &lower)) {
-      const Vec3 up = upper - lower;
-      if (up.norm() > 1e-6 && AngleBetweenDeg(up, Vec3::UnitY()) > kUpMaxDeg) {
-        out->push_back({"orientation", fmt::format(
-            "the stable markers sit above the jaw markers along {} ({:.0f} "
-            "degrees from +y): head space is +y up, +z forward, +x the "
-            "actor's left (docs/formats.md); a Z-up export needs rotating",
-            NearestAxis(up), AngleBetweenDeg(up, Vec3::UnitY()))});
-        return;  // the forward check would repeat the same rotation
-      }
-    }
+  Vec3 upper = Vec3::Zero(), lower = Vec3::Zero();
+  const bool have_upper = MeanOfTagged(actor, {"stable"}, &upper) ||
+                          MeanOfTagged(actor, {"forehead", "brow"}, &upper);
+  const bool have_lower = MeanOfTagged(actor, {"jaw"}, &lower) ||
+                          MeanOfTagged(actor, {"chin", "mouth"}, &lower);
+  const Vec3 up = upper - lower;
+  if (have_upper && have_lower && up.norm() > 1e-6 &&
+      AngleBetweenDeg(up, Vec3::UnitY()) > kUpMaxDeg) {
+    out->push_back({"orientation", fmt::format(
+        "the stable markers sit above the jaw markers along {} ({:.0f} "
+        "degrees from +y): head space is +y up, +z forward, +x the actor's "
+        "left (docs/formats.md); a Z-up export needs rotating",
+        NearestAxis(up), AngleBetweenDeg(up, Vec3::UnitY()))});
+    return;  // the forward check would repeat the same rotation
   }
   // Forward: the neutral's normals at the markers, which sit on the face.
   if (actor.markers.empty()) return;
