@@ -56,7 +56,13 @@ HMC_COMMAND(Calibrate, "", "calibrate",
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
     PrepareOutputPaths({{out_path, "--out"},
                         {*report, "--report"},
-                        {*export_kalibr, "--export-kalibr"}});
+                        {*export_kalibr, "--export-kalibr"},
+                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
+                        {out_dir / "summary.json", "summary.json beside --out"}},
+                       {{*shot, "--shot"},
+                        {*nominal, "--calibration"},
+                        {*import_kalibr, "--import-kalibr"},
+                        {*truth, "--truth"}});
     HelmetRig rig = ReadCalibration(*nominal);
     if (!import_kalibr->empty()) {
       rig = ApplyKalibr(rig, ReadKalibrCamchain(*import_kalibr), *import_kalibr);
