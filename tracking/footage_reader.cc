@@ -296,7 +296,12 @@ class VideoSource : public CameraSource {
       }
       return out;
     }
-    *error = "the frame does not decode";
+    // The next picture's timestamp is later: the video holds no picture of
+    // this time (a recorder that dropped frames, variable frame rate).
+    *error = !ended_ && pending_frame_ > frame
+                 ? "the video has no picture at this frame's time (dropped by the recorder, "
+                   "or damaged)"
+                 : "the frame does not decode";
     return {};
   }
   void SkipTo(int frame) override {
