@@ -140,7 +140,7 @@ struct StagePlan {
 class Pipeline {
  public:
   Pipeline(const RunInput& input, const RunOptions& options, const CommandRunner& run_command)
-      : input_(input), options_(options), run_command_(run_command), work_(input.out) {}
+      : input_(input), options_(options), run_command_(run_command), work_(input.out, PipelineStages()) {}
 
   RunSummary Run();
 

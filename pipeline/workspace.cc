@@ -78,13 +78,6 @@ bool IsBrowserClutter(const std::string& name) {
          name == "desktop.ini";
 }
 
-bool IsStageName(const std::string& name) {
-  for (const char* s : {"calibrate", "track", "triangulate", "stabilize", "jaw", "solve", "report"}) {
-    if (name == s) return true;
-  }
-  return false;
-}
-
 // Every regular file under `dir` by relative path (hidden ones too).
 std::vector<std::string> FilesUnder(const fs::path& dir) {
   std::vector<std::string> files;
@@ -124,7 +117,11 @@ std::vector<std::string> ForeignFiles(const fs::path& root, const std::string& s
 
 }  // namespace
 
-Workspace::Workspace(fs::path root) : root_(std::move(root)) {
+Workspace::Workspace(fs::path root, const std::vector<std::string>& stages)
+    : root_(std::move(root)) {
+  const auto is_stage = [&stages](const std::string& name) {
+    return std::find(stages.begin(), stages.end(), name) != stages.end();
+  };
   EnsureDirectory(root_);
   lock_fd_ = ::open((root_ / kLock).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (lock_fd_ < 0) {
@@ -150,10 +147,10 @@ Workspace::Workspace(fs::path root) : root_(std::move(root)) {
       const std::string name = it->path().filename().string();
       if (name == kMark || name == kLock) continue;
       if (name.front() == '.' && name.size() > 9 && name.compare(name.size() - 8, 8, ".partial") == 0 &&
-          IsStageName(name.substr(1, name.size() - 9))) {
+          is_stage(name.substr(1, name.size() - 9))) {
         continue;  // a killed run's partial stage: removed when the stage runs
       }
-      if (IsStageName(name) && it->is_directory(ec)) {
+      if (is_stage(name) && it->is_directory(ec)) {
         const std::vector<std::string> files = ForeignFiles(root_, name);
         foreign.insert(foreign.end(), files.begin(), files.end());
       } else if (!marked && !IsBrowserClutter(name)) {

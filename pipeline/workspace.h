@@ -27,6 +27,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -62,7 +63,8 @@ class Workspace {
   // files in a stage folder its summary does not list as outputs, a stage
   // folder without a summary, and -- unless the folder is already marked a
   // workspace (WORK/.hmc_workspace) -- anything else. Then marks it.
-  explicit Workspace(std::filesystem::path root);
+  // `stages`: the stage folder names (PipelineStages()).
+  Workspace(std::filesystem::path root, const std::vector<std::string>& stages);
   ~Workspace();
   Workspace(const Workspace&) = delete;
   Workspace& operator=(const Workspace&) = delete;

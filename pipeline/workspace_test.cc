@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/temp_dir.h"
+#include "pipeline/run_pipeline.h"
 
 namespace hmc {
 namespace {
@@ -25,7 +26,7 @@ StageKey Key(const std::string& input_text) {
 
 TEST(WorkspaceTest, AStageIsCompleteOnlyWithItsSummaryAndTheSameKey) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   EXPECT_FALSE(work.IsComplete(Key("a")));
   work.RunStage(Key("a"), [](const fs::path& d) {
     WriteFileAtomic(d / "tracks_2d.csv", "x\n");
@@ -42,7 +43,7 @@ TEST(WorkspaceTest, AStageIsCompleteOnlyWithItsSummaryAndTheSameKey) {
 
 TEST(WorkspaceTest, AFailedStageLeavesTheOldFolderAndNoPartialOne) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   work.RunStage(Key("a"), [](const fs::path& d) {
     WriteFileAtomic(d / "out.txt", "old");
     return nlohmann::json::object();
@@ -60,7 +61,7 @@ TEST(WorkspaceTest, AFailedStageLeavesTheOldFolderAndNoPartialOne) {
 
 TEST(WorkspaceTest, LeftoversOfAKilledRunAreRemovedAndTheRedoIsWhole) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   const fs::path partial = dir.path() / "work" / ".track.partial";
   fs::create_directories(partial);
   WriteFileAtomic(partial / ".tracks_2d.csv.tmp.123.0", "stale");
@@ -91,7 +92,7 @@ TEST(WorkspaceTest, FolderHashesFollowContentNotTime) {
 
 std::string ErrorOfClaim(const fs::path& root) {
   try {
-    Workspace work(root);
+    Workspace work(root, PipelineStages());
   } catch (const InputError& e) {
     return e.what();
   }
@@ -122,7 +123,7 @@ TEST(WorkspaceTest, FilesHmcRunDidNotWriteAreRefusedNeverDeleted) {
   // the stage's, so the stage folder is not replaced over it.
   const fs::path w = dir.path() / "W";
   {
-    Workspace work(w);
+    Workspace work(w, PipelineStages());
     work.RunStage(Key("a"), [](const fs::path& out) {
       WriteFileAtomic(out / "tracks_2d.csv", "x\n");
       return nlohmann::json::object();
@@ -143,7 +144,7 @@ TEST(WorkspaceTest, FilesHmcRunDidNotWriteAreRefusedNeverDeleted) {
 // not complete (before: a deleted solve/mesh.pc2 left "solve complete").
 TEST(WorkspaceTest, AStageWithAnOutputMissingOrChangedIsNotComplete) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   work.RunStage(Key("a"), [](const fs::path& d) {
     WriteFileAtomic(d / "tracks_2d.csv", "x\n");
     fs::create_directories(d / "sub");
@@ -172,7 +173,7 @@ TEST(WorkspaceTest, AWorkspaceInUseIsRefusedNamingThePid) {
   TempDir dir;
   const fs::path root = dir.path() / "work";
   {
-    Workspace first(root);
+    Workspace first(root, PipelineStages());
     const std::string error = ErrorOfClaim(root);
     EXPECT_NE(error.find(fmt::format("is in use by pid {}", getpid())), std::string::npos) << error;
   }
