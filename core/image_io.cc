@@ -223,7 +223,7 @@ ImageHeader ReadImageHeader(const std::filesystem::path& path) {
         const unsigned char* entry = &b[ifd + 2 + 12 * e];
         const uint32_t tag = Endian(entry, 2, little);
         const uint32_t type = Endian(entry + 2, 2, little);
-        const uint32_t value = type == 3 ? Endian(entry + 8, 2, little) : Endian(entry + 8, 4, little);
+        const uint32_t value = Endian(entry + 8, type == 3 ? 2 : 4, little);  // SHORT or LONG
         if (tag == 256) width = value;
         if (tag == 257) height = value;
       }

@@ -474,7 +474,8 @@ fs::path FindSource(const fs::path& shot, const std::string& name,
   if (found.size() > 1) {
     std::string list;
     for (const fs::path& p : found) list += " " + p.filename().string();
-    ThrowInputError(shot, 0, "camera {} has more than one source:{} (set the footage option {} to choose)",
+    ThrowInputError(shot, 0,
+                    "camera {} has more than one source:{} (set the footage option {} to choose)",
                     name, list, name);
   }
   return found[0];
