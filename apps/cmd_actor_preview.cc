@@ -50,7 +50,7 @@ int RunPreview(const PreviewArgs& args) {
   MeshRenderOptions options = args.render;
   options.perspective = !args.orthographic;
   RequireValid(options, "preview");
-  PrepareOutputPaths({{args.out, "--out"}});
+  PrepareOutputPaths({{args.out, "--out"}}, {{args.dir, "DIR"}});
   const Actor actor = LoadActor(args.dir);
   const std::vector<std::string> names =
       args.shapes.empty() ? std::vector<std::string>{"neutral"} : args.shapes;

@@ -7,7 +7,9 @@
 // CAL.yaml (same format as the nominal, atomically), options_used.yaml
 // and, last, summary.json (the report) beside it, the report (FILE.json) and, with --export-kalibr, a Kalibr
 // camchain. Refuses (exit 2, nothing but the report written) when a camera
-// moved during the shot: choose one side with --frames.
+// moved during the shot (choose one side with --frames), and when a camera
+// is solved beyond max_move_mm / max_turn_deg of its nominal pose (names
+// swapped, footage duplicated, another rig's calibration).
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -56,7 +58,13 @@ HMC_COMMAND(Calibrate, "", "calibrate",
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
     PrepareOutputPaths({{out_path, "--out"},
                         {*report, "--report"},
-                        {*export_kalibr, "--export-kalibr"}});
+                        {*export_kalibr, "--export-kalibr"},
+                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
+                        {out_dir / "summary.json", "summary.json beside --out"}},
+                       {{*shot, "--shot"},
+                        {*nominal, "--calibration"},
+                        {*import_kalibr, "--import-kalibr"},
+                        {*truth, "--truth"}});
     HelmetRig rig = ReadCalibration(*nominal);
     if (!import_kalibr->empty()) {
       rig = ApplyKalibr(rig, ReadKalibrCamchain(*import_kalibr), *import_kalibr);
@@ -78,6 +86,21 @@ HMC_COMMAND(Calibrate, "", "calibrate",
           s.change.camera, s.change.frame, s.change.shift_px, s.change.last_before,
           s.change.frame, s.change.frame - 1, s.change.frame);
       return 2;
+    }
+    // A nominal rig is off by millimetres; a camera solved centimetres or
+    // degrees away sees another camera's view of the tags (issue 45).
+    for (const CameraCalibrationReport& c : result.cameras) {
+      if (c.moved_mm > options->max_move_mm || c.turned_deg > options->max_turn_deg) {
+        spdlog::error(
+            "calibrate: {} would move {:.1f} mm and turn {:.1f} deg from its pose in {} (beyond "
+            "max_move_mm {} / max_turn_deg {} of a nominal rig): its footage does not look like "
+            "that camera's view. Likely: the cameras' names swapped in {}, two cameras with the "
+            "same footage (one video a copy of the other), or the calibration of another rig. "
+            "Refusing to write {}",
+            c.name, c.moved_mm, c.turned_deg, *nominal, options->max_move_mm,
+            options->max_turn_deg, *nominal, *out);
+        return 2;
+      }
     }
     for (const CameraCalibrationReport& c : result.cameras) {
       spdlog::info(

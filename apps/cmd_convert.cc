@@ -44,7 +44,8 @@ const char* FormatName(SequenceFormat format) {
 int RunConvert(const ConvertArgs& args) {
   const SequenceFormat in_format = SequenceFormatFromPath(args.in);
   const SequenceFormat out_format = SequenceFormatFromPath(args.out);
-  PrepareOutputPaths({{args.out, "OUT", out_format == SequenceFormat::kObjFolder}});
+  PrepareOutputPaths({{args.out, "OUT", out_format == SequenceFormat::kObjFolder}},
+                     {{args.in, "IN"}, {args.topology, "--topology"}});
 
   MeshSequenceReadOptions options;
   options.fps = args.fps;

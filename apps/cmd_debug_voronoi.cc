@@ -69,7 +69,7 @@ int RunDebugVoronoi(VoronoiArgs& args, OptionBinding& binding) {
   binding.Apply();
   RequireValid(args.options, "natural-neighbour");
   StageTimer timer("debug voronoi");
-  PrepareOutputPaths({{args.out, "--out"}});
+  PrepareOutputPaths({{args.out, "--out"}}, {{args.actor, "--actor"}});
   const Actor actor = LoadActor(args.actor);
   if (actor.markers.empty()) ThrowInputError(actor.dir, 0, "the actor has no markers");
   std::vector<SurfacePoint> sites;

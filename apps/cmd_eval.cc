@@ -68,7 +68,9 @@ void PrintTable(const EvalOutput& e, int vertices, double face_radius_mm) {
 int Run(EvalCommand& cmd, OptionBinding& binding) {
   binding.Apply();
   RequireValid(cmd.options, "eval");
-  PrepareOutputPaths({{cmd.out, "--out", true}});
+  PrepareOutputPaths({{cmd.out, "--out", true}},
+                     {{cmd.actor_dir, "--actor"}, {cmd.truth, "--truth"}, {cmd.recon, "--recon"},
+                      {cmd.bundles, "--bundles"}});
   const Actor actor = LoadActor(cmd.actor_dir);
   EvalInput input;
   input.actor = &actor;

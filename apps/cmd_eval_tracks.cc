@@ -24,7 +24,7 @@ HMC_COMMAND(EvalTracks, "", "eval-tracks",
   app->add_option("--truth", *truth, "dots_2d.csv of the shot (from hmc synth shot)")->required();
   app->add_option("--json", *json, "Write the figures to this JSON file");
   return [=] {
-    PrepareOutputPaths({{*json, "--json"}});
+    PrepareOutputPaths({{*json, "--json"}}, {{*tracks, "--tracks"}, {*truth, "--truth"}});
     const TrackScore s = ScoreTracks(ReadTracks2dCsv(*tracks), ReadDots2dCsv(*truth));
     spdlog::info("eval-tracks: {}", s.BriefReport());
     if (!json->empty()) {

@@ -33,7 +33,7 @@ HMC_COMMAND(Experiment, "", "experiment",
   return [=] {
     binding->Apply();
     input->actor_dir = *actor_dir;
-    PrepareOutputPaths({{*out, "--out", true}});
+    PrepareOutputPaths({{*out, "--out", true}}, {{*actor_dir, "--actor"}});
     // Written whole: a re-run with fewer kinds or noise levels leaves none
     // of the earlier run's folders behind (docs/reliability.md).
     ExperimentOutput output;

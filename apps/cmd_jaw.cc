@@ -38,7 +38,8 @@ HMC_COMMAND(Jaw, "", "jaw",
   return [=] {
     binding->Apply();
     RequireValid(*options, "jaw");
-    PrepareOutputPaths({{*out, "--out"}});
+    PrepareOutputPaths({{*out, "--out"}},
+                       {{*bundles, "--bundles"}, {*actor_dir, "--actor"}, {*truth, "--truth"}});
     StageTimer timer("jaw");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
     const Actor& actor = *loaded;

@@ -26,7 +26,10 @@ HMC_COMMAND(Report, "", "report",
   return [=] {
     binding->Apply();
     RequireValid(*options, "report");
-    PrepareOutputPaths({{input->out, "--out", true}});
+    // --work is not an input folder here: hmc run writes its report
+    // stage into the workspace by design (pipeline/workspace.h).
+    PrepareOutputPaths({{input->out, "--out", true}},
+                       {{input->shot, "--shot"}, {input->actor, "--actor"}});
     StageTimer timer("report");
     // Written whole: a re-run without ground truth leaves no accuracy.json
     // or error picture of an earlier one (docs/reliability.md).

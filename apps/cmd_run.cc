@@ -37,7 +37,11 @@ HMC_COMMAND(Run, "", "run",
     binding->Apply();
     input->config = binding->config_file();
     RequireValid(*options, "run");
-    PrepareOutputPaths({{input->out, "--out", true}});
+    PrepareOutputPaths({{input->out, "--out", true}},
+                       {{input->shot, "--shot"},
+                        {input->actor, "--actor"},
+                        {input->calibration, "--calibration"},
+                        {input->config, "--config"}});
     StageTimer timer("run");
     // Every stage loads the actor; parse it once for the run (each stage
     // still reads and hashes the files: core/actor_cache.h).

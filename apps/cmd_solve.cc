@@ -176,7 +176,10 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   PrepareOutputPaths({{cmd.out, "--out", format == SequenceFormat::kObjFolder},
                       {parent / "options_used.yaml", "options_used.yaml beside --out"},
                       {cmd.diagnostics_file, "--diagnostics"},
-                      {cmd.topology_file, "--topology"}});
+                      {cmd.topology_file, "--topology"}},
+                     {{cmd.actor_dir, "--actor"},
+                      {cmd.bundles_file, "--bundles"},
+                      {cmd.jaw_file, "--jaw"}});
   const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
   const Actor& actor = *loaded;
   // The file's rows (a map per frame) live only until the dense sequence

@@ -38,7 +38,8 @@ HMC_COMMAND(Stabilize, "", "stabilize",
   return [=] {
     binding->Apply();
     RequireValid(*options, "stabilize");
-    PrepareOutputPaths({{*out, "--out", true}});
+    PrepareOutputPaths({{*out, "--out", true}},
+                       {{*bundles, "--bundles"}, {*actor_dir, "--actor"}, {*truth, "--truth"}});
     StageTimer timer("stabilize");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
     const Actor& actor = *loaded;

@@ -45,7 +45,17 @@ HMC_COMMAND(Track, "", "track",
     if (*reference > 0) options->reference_frame = *reference;
     if (*dot_size > 0) options->detect.dot_size_px = *dot_size;
     RequireValid(*options, "track");
-    PrepareOutputPaths({{*out, "--out"}, {*diagnostics, "--diagnostics"}, {*overlay, "--overlay", true}});
+    const std::filesystem::path out_dir = std::filesystem::path(*out).parent_path();
+    PrepareOutputPaths({{*out, "--out"},
+                        {*diagnostics, "--diagnostics"},
+                        {*overlay, "--overlay", true},
+                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
+                        {out_dir / "summary.json", "summary.json beside --out"}},
+                       {{*shot, "--shot"},
+                        {*calibration, "--calibration"},
+                        {*actor, "--actor"},
+                        {options->footage.cam0, "cam0"},
+                        {options->footage.cam1, "cam1"}});
     StageTimer timer("track");
     TrackInput in;
     in.shot = *shot;

@@ -138,7 +138,15 @@ HMC_COMMAND(Triangulate, "", "triangulate",
     const std::filesystem::path out_path(*out);
     const std::filesystem::path out_dir =
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-    PrepareOutputPaths({{out_path, "--out"}, {*diagnostics, "--diagnostics"}, {*rays, "--rays"}});
+    PrepareOutputPaths({{out_path, "--out"},
+                        {*diagnostics, "--diagnostics"},
+                        {*rays, "--rays"},
+                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
+                        {out_dir / "summary.json", "summary.json beside --out"}},
+                       {{*tracks_path, "--tracks"},
+                        {*calibration, "--calibration"},
+                        {*truth, "--truth"},
+                        {*actor_dir, "--actor"}});
     const HelmetRig rig = ReadCalibration(*calibration);
     const bool from_dots = IsDotsFile(*tracks_path);
     const std::vector<Track2d> tracks =

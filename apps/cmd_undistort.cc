@@ -33,7 +33,8 @@ HMC_COMMAND(Undistort, "", "undistort",
     binding->Apply();
     if (*fov > 0) options->fov_deg = *fov;
     RequireValid(*options, "undistort");
-    PrepareOutputPaths({{*out, "--out", true}});
+    PrepareOutputPaths({{*out, "--out", true}},
+                       {{*shot, "--shot"}, {*calibration, "--calibration"}, {*tracks, "--tracks"}});
     StageTimer timer("undistort");
     // Written whole: a re-run with other frames or cameras leaves nothing
     // of the earlier one (docs/reliability.md).

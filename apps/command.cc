@@ -61,9 +61,11 @@ void AddRegisteredCommands(CLI::App* app, CommandRun* run) {
   }
 }
 
-void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs) {
+void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
+                        std::initializer_list<InputPath> inputs) {
+  const std::vector<InputPath> in(inputs);
   for (const OutputFlag& o : outputs) {
-    if (!o.path.empty()) PrepareOutputPath(o.path, o.flag, o.folder);
+    if (!o.path.empty()) PrepareOutputPath(o.path, o.flag, o.folder, in);
   }
 }
 

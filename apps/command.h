@@ -20,6 +20,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/options.h"
 
 namespace hmc {
@@ -49,9 +50,12 @@ struct OutputFlag {
 
 // What every command that writes calls before it reads or computes
 // anything (docs/reliability.md), so that a bad output path costs no work
-// and replaces no earlier output: PrepareOutputPath (core/file_util.h) for
-// each given flag. Throws InputError naming the path and the flag.
-void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs);
+// and replaces no earlier output: PrepareOutputPath (core/file_util.h)
+// for each given flag, with the overlap check against the command's
+// `inputs` (an output that is an input or lies in an input folder).
+// Throws InputError naming the path and the flag.
+void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
+                        std::initializer_list<InputPath> inputs = {});
 
 // Adds `--config FILE` and one flag `--<field>` per registered option field
 // to `app`. Apply() (call at run time) loads the config file, then the flags

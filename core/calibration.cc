@@ -141,6 +141,13 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
     HelmetCamera c;
     c.name = Text(Required(node, where, "name", path), where + ".name", path);
     if (c.name.empty()) ThrowInputError(path, node.Mark().line + 1, "'{}.name' is empty", where);
+    // Two cameras of one name would read the same footage (docs/reliability.md).
+    for (size_t other = 0; other < rig.cameras.size(); ++other) {
+      if (rig.cameras[other].name == c.name) {
+        ThrowInputError(path, node.Mark().line + 1, "'{}.name' {} is also cameras[{}]'s name",
+                        where, c.name, other);
+      }
+    }
     const cv::Mat K = ReadMatrix(Required(node, where, "K", path), where + ".K", path);
     const cv::Mat D = ReadMatrix(Required(node, where, "D", path), where + ".D", path);
     const cv::Mat cam_from_helmet =

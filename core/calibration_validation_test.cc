@@ -126,5 +126,14 @@ TEST(CalibrationValidationTest, BadFilesAreRefusedNamingTheKey) {
   ExpectRefused(dir.path(), scaled, "cameras[1].cam_from_helmet");
 }
 
+// Issue 45, item 2: two cameras of one name would both read that camera's
+// footage; refused when the file is read, naming the second camera.
+TEST(CalibrationValidationTest, DuplicateCameraNamesAreRefused) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ExpectRefused(dir.path(), Replace(valid, "name: cam1", "name: cam0"),
+                "'cameras[1].name' cam0 is also cameras[0]'s name");
+}
+
 }  // namespace
 }  // namespace hmc

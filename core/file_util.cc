@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace hmc {
 namespace {
@@ -140,7 +141,65 @@ void EnsureDirectory(const std::filesystem::path& dir) {
   if (error) ThrowInputError(dir, 0, "cannot create folder: {}", error.message());
 }
 
-void PrepareOutputPath(const fs::path& path, const std::string& what, bool folder) {
+namespace {
+
+// The absolute path with links and `..` resolved as far as it exists.
+fs::path Resolved(const fs::path& path) {
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  if (ec) return path.lexically_normal();
+  const fs::path resolved = fs::weakly_canonical(absolute, ec);
+  return ec ? absolute.lexically_normal() : resolved;
+}
+
+// True if `inner` is `outer` or lies inside it (both resolved).
+bool IsWithin(const fs::path& inner, const fs::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i) {
+    if (o->empty()) continue;  // a trailing separator
+    if (i == inner.end() || *i != *o) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void CheckOutputApartFromInputs(const fs::path& output, const std::string& what,
+                                const std::vector<InputPath>& inputs) {
+  if (output.empty()) return;
+  if (!IsValidUtf8(output.string())) {
+    ThrowInputError(output, 0, "{}: the path is not valid UTF-8 (hmc records paths in JSON "
+                    "summaries): choose a UTF-8 name", what);
+  }
+  const fs::path out = Resolved(output);
+  std::error_code ec;
+  for (const InputPath& in : inputs) {
+    if (in.path.empty()) continue;
+    if (!IsValidUtf8(in.path.string())) {
+      ThrowInputError(in.path, 0, "{}: the path is not valid UTF-8 (hmc records paths in JSON "
+                      "summaries): rename it", in.flag);
+    }
+    if (out == Resolved(in.path)) {
+      ThrowInputError(output, 0, "{}: is also the input {}: refusing to overwrite an input",
+                      what, in.flag);
+    }
+  }
+  for (const InputPath& in : inputs) {
+    if (in.path.empty()) continue;
+    const fs::path input = Resolved(in.path);
+    if (fs::is_directory(input, ec) && IsWithin(out, input)) {
+      ThrowInputError(output, 0, "{}: lies inside the input folder {} ({}): refusing to write "
+                      "into an input", what, in.flag, in.path.string());
+    }
+    if (IsWithin(input, out)) {
+      ThrowInputError(output, 0, "{}: holds the input {} ({}): refusing to write over an input",
+                      what, in.flag, in.path.string());
+    }
+  }
+}
+
+void PrepareOutputPath(const fs::path& path, const std::string& what, bool folder,
+                       const std::vector<InputPath>& inputs) {
   if (path.empty()) ThrowInputError(path, 0, "{}: an empty path", what);
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
@@ -156,6 +215,7 @@ void PrepareOutputPath(const fs::path& path, const std::string& what, bool folde
     ThrowInputError(path, 0, "{}: refusing to write inside the actor package {}", what,
                     package.string());
   }
+  CheckOutputApartFromInputs(path, what, inputs);
   std::error_code error;
   fs::create_directories(dir, error);
   if (error) {

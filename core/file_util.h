@@ -8,6 +8,7 @@
 #include <iosfwd>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace hmc {
 
@@ -37,6 +38,13 @@ std::string DescribeUnreadable(const std::filesystem::path& path);
 // Creates `dir` (and parents); throws InputError if it cannot.
 void EnsureDirectory(const std::filesystem::path& dir);
 
+// One input path of a command (a file or a folder) and its flag, for
+// CheckOutputApartFromInputs.
+struct InputPath {
+  std::filesystem::path path;  // empty: not given, skipped
+  std::string flag;            // "--shot"
+};
+
 // Checks an output path before any work is done (docs/reliability.md):
 // creates its folder (and parents), and throws InputError naming `path` and
 // `what` (the flag: "--diagnostics") if it lies inside an actor package
@@ -44,8 +52,20 @@ void EnsureDirectory(const std::filesystem::path& dir);
 // one writer into a package, and does not come here), if that folder
 // cannot be created or written, or if `path` is an existing folder (a file
 // output) or an existing file (a folder output, folder = true).
+// Before that, CheckOutputApartFromInputs with the command's `inputs`.
 void PrepareOutputPath(const std::filesystem::path& path,
-                       const std::string& what, bool folder = false);
+                       const std::string& what, bool folder = false,
+                       const std::vector<InputPath>& inputs = {});
+
+// The one input/output overlap check of every command (docs/reliability.md):
+// throws InputError naming both flags when `output` is one of `inputs`,
+// lies inside an input folder (`hmc run --shot S --out S/cam0`, `hmc
+// calibrate --out S/calibration.yaml`: files beside --out would land in the
+// shot too), or is a folder that holds an input. Paths are compared after
+// resolving links and `..`. Also refuses a path that is not valid UTF-8
+// (the JSON summaries record paths): `what` names the output's flag.
+void CheckOutputApartFromInputs(const std::filesystem::path& output, const std::string& what,
+                                const std::vector<InputPath>& inputs);
 
 // The actor package (a folder holding actor.yaml) that `path` is or lies
 // inside, or "" when none: outputs are never written into a package.

@@ -1,6 +1,9 @@
 #include "core/image_io.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <exception>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -140,6 +143,102 @@ cv::Mat ReadExr(const std::filesystem::path& path) {
   } catch (const std::exception& error) {
     ThrowInputError(path, 0, "cannot read OpenEXR: {}", error.what());
   }
+}
+
+namespace {
+
+uint32_t BigEndian(const unsigned char* p, int bytes) {
+  uint32_t v = 0;
+  for (int i = 0; i < bytes; ++i) v = (v << 8) | p[i];
+  return v;
+}
+
+uint32_t Endian(const unsigned char* p, int bytes, bool little) {
+  if (!little) return BigEndian(p, bytes);
+  uint32_t v = 0;
+  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+
+}  // namespace
+
+ImageHeader ReadImageHeader(const std::filesystem::path& path) {
+  ImageHeader h;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    h.error = "cannot be opened";
+    return h;
+  }
+  // The header lies in the first 64 KiB for every file a camera writes
+  // (JPEG's SOF follows the tables; TIFF's first IFD is usually at 8).
+  std::vector<unsigned char> b(65536);
+  in.read(reinterpret_cast<char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  b.resize(static_cast<size_t>(in.gcount()));
+  const size_t n = b.size();
+  static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (n >= 8 && std::equal(kPng, kPng + 8, b.begin())) {
+    h.format = "PNG";
+    if (n < 24 || std::string(b.begin() + 12, b.begin() + 16) != "IHDR") {
+      h.error = "PNG header (IHDR) cut short";
+      h.format.clear();
+      return h;
+    }
+    h.size = cv::Size(static_cast<int>(std::min<uint32_t>(BigEndian(&b[16], 4), INT32_MAX)),
+                      static_cast<int>(std::min<uint32_t>(BigEndian(&b[20], 4), INT32_MAX)));
+    return h;
+  }
+  if (n >= 3 && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff) {
+    // Segments FF xx LEN... up to a start of frame (SOF0..SOF15 but for
+    // DHT C4, JPG C8, DAC CC): precision, height, width.
+    size_t at = 2;
+    while (at + 4 <= n && b[at] == 0xff) {
+      const unsigned char marker = b[at + 1];
+      if (marker == 0xff) {
+        ++at;
+        continue;
+      }
+      const size_t length = BigEndian(&b[at + 2], 2);
+      if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
+          marker != 0xcc) {
+        if (at + 9 > n) break;
+        h.format = "JPEG";
+        h.size = cv::Size(static_cast<int>(BigEndian(&b[at + 7], 2)),
+                          static_cast<int>(BigEndian(&b[at + 5], 2)));
+        return h;
+      }
+      if (length < 2) break;
+      at += 2 + length;
+    }
+    h.error = "JPEG header without a frame size in its first 64 KiB";
+    return h;
+  }
+  const bool little = n >= 4 && b[0] == 'I' && b[1] == 'I' && b[2] == 42 && b[3] == 0;
+  const bool big = n >= 4 && b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42;
+  if (little || big) {
+    const size_t ifd = n >= 8 ? Endian(&b[4], 4, little) : n;
+    if (ifd + 2 <= n) {
+      const size_t entries = Endian(&b[ifd], 2, little);
+      long width = -1, height = -1;
+      for (size_t e = 0; e < entries && ifd + 2 + 12 * (e + 1) <= n; ++e) {
+        const unsigned char* entry = &b[ifd + 2 + 12 * e];
+        const uint32_t tag = Endian(entry, 2, little);
+        const uint32_t type = Endian(entry + 2, 2, little);
+        const uint32_t value = Endian(entry + 8, type == 3 ? 2 : 4, little);  // SHORT or LONG
+        if (tag == 256) width = value;
+        if (tag == 257) height = value;
+      }
+      if (width >= 0 && height >= 0) {
+        h.format = "TIFF";
+        h.size = cv::Size(static_cast<int>(std::min<long>(width, INT32_MAX)),
+                          static_cast<int>(std::min<long>(height, INT32_MAX)));
+        return h;
+      }
+    }
+    h.error = "TIFF header without an image size in its first 64 KiB";
+    return h;
+  }
+  h.error = n < 8 ? "too short to be an image" : "not a PNG, JPEG or TIFF image";
+  return h;
 }
 
 }  // namespace hmc

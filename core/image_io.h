@@ -5,6 +5,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 
 #include <opencv2/core.hpp>
 
@@ -19,6 +20,17 @@ void WritePng(const std::filesystem::path& path, const cv::Mat& image);
 // Reads a PNG (or any format OpenCV decodes) unchanged: depth and channel
 // count as stored. Throws InputError naming `path` if it cannot.
 cv::Mat ReadPng(const std::filesystem::path& path);
+
+// What an image file's header declares, read without decoding the pixels
+// (a 20000 x 20000 PNG of zeros is 2 MB on disk and 2.4 GB decoded:
+// docs/reliability.md). `format` is "" when the file is none of PNG, JPEG
+// or TIFF, or its header is cut short; then `error` says why.
+struct ImageHeader {
+  std::string format;  // "PNG", "JPEG", "TIFF"
+  cv::Size size;
+  std::string error;
+};
+ImageHeader ReadImageHeader(const std::filesystem::path& path);
 
 enum class ExrPixel {
   kHalf,   // 16-bit float: 11 bits of mantissa, enough for pictures

@@ -7,6 +7,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <unistd.h>
 
 #include "core/error.h"
@@ -65,6 +66,26 @@ TEST_F(ImageIoTest, PngRejectsBadInputAndLeavesNoFile) {
   EXPECT_THROW(ReadPng(dir_ / "missing.png"), InputError);
   WriteFileAtomic(dir_ / "garbage.png", "not a png");
   EXPECT_THROW(ReadPng(dir_ / "garbage.png"), InputError);
+}
+
+// Issue 45, item 8: the header gives the size OpenCV decodes, for each
+// format a camera writes, without decoding; anything else is "" with why.
+TEST_F(ImageIoTest, HeaderSizeMatchesTheDecodedSize) {
+  unsigned seed = 3;
+  for (const char* ext : {".png", ".jpg", ".tif"}) {
+    for (const int type : {CV_8UC1, CV_8UC3}) {
+      const cv::Mat image = RandomImage(29 + seed, 71 - seed, type, seed);
+      const auto path = dir_ / ("h" + std::to_string(seed++) + ext);
+      ASSERT_TRUE(cv::imwrite(path.string(), image));
+      const ImageHeader h = ReadImageHeader(path);
+      EXPECT_EQ(h.size, cv::imread(path.string(), cv::IMREAD_UNCHANGED).size()) << path;
+      EXPECT_FALSE(h.format.empty()) << path << ": " << h.error;
+    }
+  }
+  WriteFileAtomic(dir_ / "garbage.png", "not a png at all");
+  EXPECT_TRUE(ReadImageHeader(dir_ / "garbage.png").format.empty());
+  WriteFileAtomic(dir_ / "cut.png", ReadFile(dir_ / "h3.png").substr(0, 20));  // inside IHDR
+  EXPECT_TRUE(ReadImageHeader(dir_ / "cut.png").format.empty());
 }
 
 TEST_F(ImageIoTest, ExrFloatRoundTripIsExact) {

@@ -31,6 +31,10 @@ bool ParseInt(std::string_view token, int* value);
 // `s` without leading and trailing blanks, tabs and carriage returns.
 std::string_view Trim(std::string_view s);
 
+// True if `s` is well-formed UTF-8 (no overlong forms, surrogates or code
+// points above U+10FFFF): what a JSON file can hold as a string.
+bool IsValidUtf8(std::string_view s);
+
 // The blank- or tab-separated tokens of `s`.
 std::vector<std::string_view> SplitWhitespace(std::string_view s);
 

@@ -83,5 +83,15 @@ TEST(TextTest, CsvTableChecksHeaderAndFieldCount) {
   EXPECT_NE(message("frame,x\n1,inf\n").find("finite"), std::string::npos);
 }
 
+// Issue 45, item 10: what JSON can hold (nlohmann throws on the rest).
+TEST(TextTest, Utf8ValidityFollowsTheStandard) {
+  EXPECT_TRUE(IsValidUtf8("W\xc3\xa9rk/\xe6\x97\xa5\xf0\x9f\x99\x82"));
+  EXPECT_TRUE(IsValidUtf8(""));
+  for (const std::string bad : {"W\xe9rk", "\xc3", "\xc0\xaf", "\xed\xa0\x80", "\xf4\x90\x80\x80",
+                                "\xff", "ab\xe6\x97"}) {
+    EXPECT_FALSE(IsValidUtf8(bad)) << bad;
+  }
+}
+
 }  // namespace
 }  // namespace hmc

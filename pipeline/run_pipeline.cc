@@ -140,7 +140,7 @@ struct StagePlan {
 class Pipeline {
  public:
   Pipeline(const RunInput& input, const RunOptions& options, const CommandRunner& run_command)
-      : input_(input), options_(options), run_command_(run_command), work_(input.out) {}
+      : input_(input), options_(options), run_command_(run_command), work_(input.out, PipelineStages()) {}
 
   RunSummary Run();
 
@@ -338,6 +338,13 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
 RunSummary Pipeline::Run() {
   const auto start = std::chrono::steady_clock::now();
   config_ = ReadRunConfig(input_.config);
+  // The user's calibration is checked here, so that what is wrong with it
+  // names that file, not the workspace's copy a later stage reads.
+  const HelmetRig rig = ReadCalibration(input_.calibration);
+  if (rig.cameras.size() != 2) {
+    ThrowInputError(input_.calibration, 0, "hmc run needs a rig of two cameras, the file has {}",
+                    rig.cameras.size());
+  }
   const std::shared_ptr<const Actor> loaded = LoadActorShared(input_.actor);
   const Actor& actor = *loaded;
   actor_hash_ = HashHex(actor.content_hash);

@@ -11,6 +11,15 @@
 // killed at any point leaves either the old complete folder or a partial
 // one that the next run removes: never a half-written stage folder that
 // looks complete, and no stale temporary files.
+//
+// A stage's summary also records its outputs: every file the stage wrote,
+// by relative path, with its content hash. A stage is complete only while
+// those files are there unchanged (a deleted mesh.pc2 is made again), and
+// they are the only files hmc run may replace: a workspace holding files
+// it did not write (notes in WORK/track/, a PDF in WORK/report/, a folder
+// of someone else's) is refused before any work, never emptied. One run at
+// a time: the workspace is locked (WORK/.hmc_lock, flock) while a
+// Workspace object lives. docs/reliability.md.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +27,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -47,12 +57,23 @@ uint64_t HashPath(const std::filesystem::path& path);
 
 class Workspace {
  public:
-  explicit Workspace(std::filesystem::path root);
+  // Creates `root` or claims an existing one: takes its lock (InputError
+  // "WORK is in use by pid N" while another process holds it) and refuses
+  // (InputError listing them) files in it that hmc run did not write:
+  // files in a stage folder its summary does not list as outputs, a stage
+  // folder without a summary, and -- unless the folder is already marked a
+  // workspace (WORK/.hmc_workspace) -- anything else. Then marks it.
+  // `stages`: the stage folder names (PipelineStages()).
+  Workspace(std::filesystem::path root, const std::vector<std::string>& stages);
+  ~Workspace();
+  Workspace(const Workspace&) = delete;
+  Workspace& operator=(const Workspace&) = delete;
 
   const std::filesystem::path& root() const { return root_; }
   std::filesystem::path StageDir(const std::string& stage) const { return root_ / stage; }
 
-  // True if WORK/<stage>/summary.json exists, parses, and records `key`.
+  // True if WORK/<stage>/summary.json exists, parses, records `key`, and
+  // every output it lists is there with the content it recorded.
   bool IsComplete(const StageKey& key) const;
   // The stage's summary.json (null if missing or unreadable).
   nlohmann::json ReadSummary(const std::string& stage) const;
@@ -60,7 +81,8 @@ class Workspace {
   // Runs body(dir) with a fresh, empty WORK/.<stage>.partial/ and returns
   // what it returns; `body` writes the stage's files there and returns the
   // stage's own report. Then writes summary.json ({"stage", "key",
-  // "seconds", "report"}; a summary.json the stage's command wrote itself
+  // "seconds", "report", "outputs": {relative path: content hash}}; a
+  // summary.json the stage's command wrote itself
   // goes into the report as "command_summary") last, atomically, and moves
   // the folder to
   // WORK/<stage>/, replacing the old one. If `body` throws, the partial
@@ -73,6 +95,7 @@ class Workspace {
 
  private:
   std::filesystem::path root_;
+  int lock_fd_ = -1;
 };
 
 }  // namespace hmc

@@ -1,11 +1,15 @@
 #include "pipeline/workspace.h"
 
+#include <unistd.h>
+
 #include <stdexcept>
 
 #include <gtest/gtest.h>
 
+#include "core/error.h"
 #include "core/file_util.h"
 #include "core/temp_dir.h"
+#include "pipeline/run_pipeline.h"
 
 namespace hmc {
 namespace {
@@ -22,7 +26,7 @@ StageKey Key(const std::string& input_text) {
 
 TEST(WorkspaceTest, AStageIsCompleteOnlyWithItsSummaryAndTheSameKey) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   EXPECT_FALSE(work.IsComplete(Key("a")));
   work.RunStage(Key("a"), [](const fs::path& d) {
     WriteFileAtomic(d / "tracks_2d.csv", "x\n");
@@ -39,7 +43,7 @@ TEST(WorkspaceTest, AStageIsCompleteOnlyWithItsSummaryAndTheSameKey) {
 
 TEST(WorkspaceTest, AFailedStageLeavesTheOldFolderAndNoPartialOne) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   work.RunStage(Key("a"), [](const fs::path& d) {
     WriteFileAtomic(d / "out.txt", "old");
     return nlohmann::json::object();
@@ -57,7 +61,7 @@ TEST(WorkspaceTest, AFailedStageLeavesTheOldFolderAndNoPartialOne) {
 
 TEST(WorkspaceTest, LeftoversOfAKilledRunAreRemovedAndTheRedoIsWhole) {
   TempDir dir;
-  Workspace work(dir.path() / "work");
+  Workspace work(dir.path() / "work", PipelineStages());
   const fs::path partial = dir.path() / "work" / ".track.partial";
   fs::create_directories(partial);
   WriteFileAtomic(partial / ".tracks_2d.csv.tmp.123.0", "stale");
@@ -84,6 +88,97 @@ TEST(WorkspaceTest, FolderHashesFollowContentNotTime) {
   EXPECT_EQ(HashPath(dir.path() / "a"), h);
   WriteFileAtomic(dir.path() / "a" / "sub" / "y.txt", "3");
   EXPECT_NE(HashPath(dir.path() / "a"), h);
+}
+
+std::string ErrorOfClaim(const fs::path& root) {
+  try {
+    Workspace work(root, PipelineStages());
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+// Issue 45, item 3: a folder holding files hmc run did not write is
+// refused before any work, and every file is left where it was (before:
+// `hmc run --out D` deleted D/track/my_notes.txt and D/report/*.pdf).
+TEST(WorkspaceTest, FilesHmcRunDidNotWriteAreRefusedNeverDeleted) {
+  TempDir dir;
+  const fs::path d = dir.path() / "D";
+  fs::create_directories(d / "track");
+  fs::create_directories(d / "report");
+  WriteFileAtomic(d / "track" / "my_notes.txt", "notes\n");
+  WriteFileAtomic(d / "report" / "final_client_report.pdf", "x\n");
+  const std::string error = ErrorOfClaim(d);
+  EXPECT_NE(error.find("2 file(s) hmc run did not write"), std::string::npos) << error;
+  EXPECT_NE(error.find("track/my_notes.txt"), std::string::npos) << error;
+  EXPECT_NE(error.find("report/final_client_report.pdf"), std::string::npos) << error;
+  EXPECT_EQ(ReadFile(d / "track" / "my_notes.txt"), "notes\n");
+  EXPECT_EQ(ReadFile(d / "report" / "final_client_report.pdf"), "x\n");
+  // Any folder of someone else's, too.
+  fs::create_directories(dir.path() / "mine");
+  WriteFileAtomic(dir.path() / "mine" / "budget.xlsx", "x");
+  EXPECT_NE(ErrorOfClaim(dir.path() / "mine").find("budget.xlsx"), std::string::npos);
+  // In a workspace: a file dropped into a complete stage's folder is not
+  // the stage's, so the stage folder is not replaced over it.
+  const fs::path w = dir.path() / "W";
+  {
+    Workspace work(w, PipelineStages());
+    work.RunStage(Key("a"), [](const fs::path& out) {
+      WriteFileAtomic(out / "tracks_2d.csv", "x\n");
+      return nlohmann::json::object();
+    });
+  }
+  // What Finder leaves in a folder it showed is not the user's work.
+  WriteFileAtomic(w / "track" / ".DS_Store", "finder\n");
+  EXPECT_EQ(ErrorOfClaim(w), "no error");
+  WriteFileAtomic(w / "track" / "look_at_frame_12.txt", "!\n");
+  EXPECT_NE(ErrorOfClaim(w).find("track/look_at_frame_12.txt"), std::string::npos);
+  // Files beside the stage folders of a workspace are never touched: kept.
+  fs::remove(w / "track" / "look_at_frame_12.txt");
+  WriteFileAtomic(w / "README.txt", "the take of Monday\n");
+  EXPECT_EQ(ErrorOfClaim(w), "no error");
+}
+
+// Issue 45, item 4: a stage whose recorded output is missing or changed is
+// not complete (before: a deleted solve/mesh.pc2 left "solve complete").
+TEST(WorkspaceTest, AStageWithAnOutputMissingOrChangedIsNotComplete) {
+  TempDir dir;
+  Workspace work(dir.path() / "work", PipelineStages());
+  work.RunStage(Key("a"), [](const fs::path& d) {
+    WriteFileAtomic(d / "tracks_2d.csv", "x\n");
+    fs::create_directories(d / "sub");
+    WriteFileAtomic(d / "sub" / "frame_1.png", "p\n");
+    return nlohmann::json::object();
+  });
+  ASSERT_TRUE(work.IsComplete(Key("a")));
+  const nlohmann::json outputs = work.ReadSummary("track")["outputs"];
+  EXPECT_EQ(outputs.size(), 2u) << outputs.dump();
+  EXPECT_TRUE(outputs.contains("sub/frame_1.png")) << outputs.dump();
+  for (const char* file : {"tracks_2d.csv", "sub/frame_1.png"}) {
+    const fs::path path = work.StageDir("track") / file;
+    const std::string bytes = ReadFile(path);
+    fs::remove(path);
+    EXPECT_FALSE(work.IsComplete(Key("a"))) << file;
+    WriteFileAtomic(path, bytes + "edited");
+    EXPECT_FALSE(work.IsComplete(Key("a"))) << file;
+    WriteFileAtomic(path, bytes);
+    EXPECT_TRUE(work.IsComplete(Key("a"))) << file;
+  }
+}
+
+// Issue 45, item 5: one run at a time per workspace (before: two runs
+// deleted each other's partial folders).
+TEST(WorkspaceTest, AWorkspaceInUseIsRefusedNamingThePid) {
+  TempDir dir;
+  const fs::path root = dir.path() / "work";
+  {
+    Workspace first(root, PipelineStages());
+    const std::string error = ErrorOfClaim(root);
+    EXPECT_NE(error.find(fmt::format("is in use by pid {}", getpid())), std::string::npos) << error;
+  }
+  EXPECT_EQ(ErrorOfClaim(root), "no error");  // released with the first
+  EXPECT_EQ(ReadFile(root / ".hmc_lock"), "");
 }
 
 }  // namespace

@@ -138,5 +138,46 @@ TEST_F(CalibrateTest, TriangulatingTheExactDotsGivesTheTruthBundles) {
   EXPECT_EQ(summary["triangulated"].get<int>(), summary["candidates"].get<int>());
 }
 
+// Issue 45, item 2: cameras swapped in the nominal calibration, or one
+// camera's video a copy of the other's, are refused with the likely cause
+// (before: a camera moved 58 mm / 10.6 deg, written as complete, exit 0);
+// the nominal's own 2 mm / 1 deg error passes.
+TEST_F(CalibrateTest, SwappedOrDuplicatedCamerasAreRefused) {
+  const fs::path shot = dir_ / "swap";
+  const CliResult synth = RunHmc(
+      fmt::format("synth shot --actor '{}' --out '{}' --frames 3 --seed 7 --contact_frames 0 "
+                  "--nominal_mm 2 --nominal_deg 1",
+                  (dir_ / "actor").string(), shot.string()),
+      dir_);
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  auto calibrate = [&](const fs::path& s, const fs::path& cal, const fs::path& out) {
+    return RunHmc(fmt::format("calibrate --shot '{}' --calibration '{}' --sample 3 --out '{}'",
+                              s.string(), cal.string(), out.string()),
+                  dir_);
+  };
+  const CliResult good = calibrate(shot, shot / "calibration.yaml", dir_ / "good" / "cal.yaml");
+  ASSERT_EQ(good.exit_code, 0) << good.err;
+  std::string text = ReadFile(shot / "calibration.yaml");
+  const size_t a = text.find("name: cam0");
+  const size_t b = text.find("name: cam1");
+  ASSERT_NE(a, std::string::npos);
+  ASSERT_NE(b, std::string::npos);
+  text[a + 9] = '1';
+  text[b + 9] = '0';
+  WriteFileAtomic(dir_ / "swapped.yaml", text);
+  const CliResult swapped = calibrate(shot, dir_ / "swapped.yaml", dir_ / "swapped" / "cal.yaml");
+  EXPECT_EQ(swapped.exit_code, 2) << swapped.err;
+  EXPECT_NE(swapped.err.find("swapped"), std::string::npos) << swapped.err;
+  EXPECT_FALSE(fs::exists(dir_ / "swapped" / "cal.yaml"));
+  // cam1's video a copy of cam0's.
+  const fs::path copy = dir_ / "copy";
+  fs::create_directories(copy);
+  fs::copy_file(shot / "cam0.mkv", copy / "cam0.mkv");
+  fs::copy_file(shot / "cam0.mkv", copy / "cam1.mkv");
+  const CliResult duplicated = calibrate(copy, shot / "calibration.yaml", dir_ / "dup" / "cal.yaml");
+  EXPECT_EQ(duplicated.exit_code, 2) << duplicated.err;
+  EXPECT_NE(duplicated.err.find("copy of the other"), std::string::npos) << duplicated.err;
+}
+
 }  // namespace
 }  // namespace hmc

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "core/calibration.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
 #include "core/mesh_sequence.h"
@@ -490,6 +491,99 @@ TEST(ReliabilityOutputs, EveryCommandChecksItsOutputsFirst) {
   const std::vector<std::string> after = without_runner_files(Listing(dir));
   const std::vector<std::string> before = without_runner_files(listing);
   EXPECT_EQ(after, before);
+  fs::remove_all(dir);
+}
+
+// Issue 45, items 3, 6, 7, 10 and 11 (the ones decided before any input is
+// read, so the inputs here need not be valid): hmc run refuses a folder
+// holding files it did not write and leaves them; no command writes an
+// output over an input or into an input folder; a path that is not UTF-8
+// is refused up front; a calibration hmc run cannot use is named as the
+// user's file.
+TEST(ReliabilityStudio, WorkspacesAndOutputsNeverTakeUsersOrInputsFiles) {
+  const fs::path dir = FreshTestDir("hmc_rel_studio", 1);
+  const fs::path shot = dir / "S";
+  fs::create_directories(shot / "cam0");
+  WriteFileAtomic(shot / "calibration.yaml", "not read\n");
+  const fs::path actor = dir / "A";
+  fs::create_directories(actor);
+  WriteFileAtomic(actor / "actor.yaml", "not read\n");
+  auto run = [&](const fs::path& out, const fs::path& calibration) {
+    return RunHmc(fmt::format("run --shot '{}' --actor '{}' --calibration '{}' --out '{}'",
+                              shot.string(), actor.string(), calibration.string(), out.string()),
+                  dir);
+  };
+  // Item 3: a user's notes and a client's report are not deleted.
+  const fs::path d = dir / "D";
+  fs::create_directories(d / "track");
+  fs::create_directories(d / "report");
+  WriteFileAtomic(d / "track" / "my_notes.txt", "notes\n");
+  WriteFileAtomic(d / "report" / "final_client_report.pdf", "x\n");
+  const CliResult users = run(d, shot / "calibration.yaml");
+  EXPECT_EQ(users.exit_code, 2) << users.err;
+  EXPECT_NE(users.err.find("did not write"), std::string::npos) << users.err;
+  EXPECT_EQ(ReadFile(d / "track" / "my_notes.txt"), "notes\n");
+  EXPECT_EQ(ReadFile(d / "report" / "final_client_report.pdf"), "x\n");
+  // Item 6: the workspace in the shot, or in a camera folder of it.
+  const std::vector<std::pair<fs::path, std::string>> inside = {
+      {shot, "--out: is also the input --shot"},
+      {shot / "cam0", "--out: lies inside the input folder --shot"},
+      {shot / "work", "--out: lies inside the input folder --shot"}};
+  for (const auto& [out, message] : inside) {
+    const CliResult r = run(out, shot / "calibration.yaml");
+    EXPECT_EQ(r.exit_code, 2) << out << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(shot / "work"));
+  // Item 7: an output that is an input, or lies in an input folder.
+  const std::string cal = (shot / "calibration.yaml").string();
+  const std::vector<std::pair<std::string, std::string>> overwrites = {
+      {"calibrate --shot " + shot.string() + " --calibration " + cal + " --out " + cal,
+       "--out: is also the input --calibration"},
+      {"calibrate --shot " + shot.string() + " --calibration " + cal + " --out " +
+           (shot / "refined.yaml").string(),
+       "--out: lies inside the input folder --shot"},
+      {"calibrate --shot " + shot.string() + " --calibration " + cal + " --out " +
+           (dir / "c.yaml").string() + " --report " + cal,
+       "--report: is also the input --calibration"},
+      {"track --shot " + shot.string() + " --calibration " + cal + " --actor " + actor.string() +
+           " --out " + (shot / "cam0" / "t.csv").string(),
+       "--out: lies inside the input folder --shot"},
+      {"triangulate --tracks " + cal + " --calibration " + cal + " --out " + cal,
+       "--out: is also the input --tracks"},
+      {"undistort --shot " + shot.string() + " --calibration " + cal + " --out " + dir.string(),
+       "--out: holds the input --shot"},
+      {"convert " + (dir / "m.pc2").string() + " " + (dir / "m.pc2").string(),
+       "OUT: is also the input IN"},
+  };
+  for (const auto& [line, message] : overwrites) {
+    const CliResult r = RunHmc(line, dir);
+    EXPECT_EQ(r.exit_code, 2) << line << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << line << ": " << r.err;
+  }
+  EXPECT_EQ(ReadFile(shot / "calibration.yaml"), "not read\n");
+  EXPECT_FALSE(fs::exists(shot / "summary.json"));
+  EXPECT_FALSE(fs::exists(shot / "options_used.yaml"));
+  // Item 10: a workspace path that JSON cannot hold.
+  const CliResult latin1 = run(dir / "W\xe9rk", shot / "calibration.yaml");
+  EXPECT_EQ(latin1.exit_code, 2) << latin1.err;
+  EXPECT_NE(latin1.err.find("not valid UTF-8"), std::string::npos) << latin1.err;
+  EXPECT_FALSE(fs::exists(dir / "W\xe9rk"));
+  // Item 11: a calibration of one camera is the user's file's fault.
+  HelmetRig one;
+  FisheyeCamera camera;
+  camera.width = 64;
+  camera.height = 48;
+  camera.fx = camera.fy = 40;
+  camera.cx = 32;
+  camera.cy = 24;
+  one.cameras.push_back({"cam0", camera, Rigid3::Identity()});
+  WriteCalibration(dir / "one_camera.yaml", one);
+  const CliResult lone = run(dir / "W", dir / "one_camera.yaml");
+  EXPECT_EQ(lone.exit_code, 2) << lone.err;
+  EXPECT_NE(lone.err.find((dir / "one_camera.yaml").string() + ": hmc run needs a rig of two cameras"),
+            std::string::npos)
+      << lone.err;
   fs::remove_all(dir);
 }
 

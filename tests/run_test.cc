@@ -119,6 +119,18 @@ TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
   EXPECT_EQ(again.err.find("hmc track"), std::string::npos) << again.err;
   EXPECT_NE(again.err.find("track complete"), std::string::npos) << again.err;
   EXPECT_EQ(DataFiles(work), before);
+
+  // Issue 45, item 4: a complete stage's output deleted is made again, and
+  // the stages after it whose inputs come back the same are kept (before:
+  // "solve complete" with no mesh, or "cannot read the file to hash it").
+  for (const std::string file : {"solve/mesh.pc2", "track/tracks_2d.csv"}) {
+    fs::remove(work / file);
+    const CliResult repaired = RunHmc(RunArgs(d / "shot", work), d);
+    ASSERT_EQ(repaired.exit_code, 0) << file << ": " << repaired.err;
+    EXPECT_NE(repaired.err.find((work / file).string() + " is missing"), std::string::npos)
+        << repaired.err;
+    EXPECT_EQ(DataFiles(work), before) << file;
+  }
 }
 
 // Running a stage's own command on the previous stage's folder gives the

@@ -248,6 +248,60 @@ TEST_F(TrackTest, WrongSizeOrUnreadableFootageIsRefusedWithTheFileNamed) {
   EXPECT_FALSE(fs::exists(dir_ / "refused" / "tracks_2d.csv"));
 }
 
+// Issue 45, item 11: markers of the actor that are never found over the
+// shot (30 not painted: the shot is rendered with an actor without them)
+// are reported by name (before: wrong names rose, without a word).
+TEST_F(TrackTest, MarkersNeverFoundOverTheShotAreReported) {
+  const fs::path fewer = dir_ / "actor_fewer";
+  fs::copy(dir_ / "actor", fewer, fs::copy_options::recursive);
+  const std::string markers = ReadFile(fewer / "markers.csv");
+  std::vector<std::string> lines;
+  for (size_t at = 0, end; at < markers.size(); at = end + 1) {
+    end = markers.find('\n', at);
+    if (end == std::string::npos) end = markers.size();
+    lines.push_back(markers.substr(at, end - at));
+  }
+  // Every third marker row from the 2nd onwards, 30 of them, is not painted.
+  std::set<std::string> removed;
+  std::string kept;
+  int row = 0;
+  for (const std::string& line : lines) {
+    const bool data = !line.empty() && line[0] != '#' && line.rfind("name,", 0) != 0;
+    if (data && row++ % 3 == 1 && removed.size() < 30) {
+      removed.insert(line.substr(0, line.find(',')));
+      continue;
+    }
+    if (!line.empty()) kept += line + "\n";
+  }
+  ASSERT_EQ(removed.size(), 30u);
+  WriteFileAtomic(fewer / "markers.csv", kept);
+  const fs::path shot = dir_ / "shot_fewer";
+  const CliResult synth = RunHmc(
+      fmt::format("synth shot --actor '{}' --out '{}' --frames 3 --seed 4 {}", fewer.string(),
+                  shot.string(), kShotFlags),
+      dir_);
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path out = dir_ / "track_fewer" / "tracks_2d.csv";
+  const CliResult r = Track(shot, out);  // with the whole actor
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("markers never found over the shot"), std::string::npos) << r.err;
+  const nlohmann::json summary = nlohmann::json::parse(ReadFile(out.parent_path() / "summary.json"));
+  const std::vector<std::string> never = summary["never_found"];
+  // Never found: only (and most of) the unpainted ones; none of them is in
+  // the tracks, and every marker not in the tracks is listed.
+  int unpainted = 0;
+  for (const std::string& name : never) unpainted += removed.count(name);
+  EXPECT_GE(unpainted, 25) << summary["never_found"].dump();
+  std::set<std::string> tracked;
+  for (const Track2d& t : ReadTracks2dCsv(out)) tracked.insert(t.marker);
+  for (const std::string& name : never) EXPECT_EQ(tracked.count(name), 0u) << name;
+  std::set<std::string> all;
+  for (const std::string& line : lines) {
+    if (!line.empty() && line[0] != '#' && line.rfind("name,", 0) != 0) all.insert(line.substr(0, line.find(',')));
+  }
+  EXPECT_EQ(never.size() + tracked.size(), all.size());
+}
+
 TEST_F(TrackTest, UndistortWritesPinholeFramesWithTheTracksDrawn) {
   const fs::path shot = Shot("shot1", 1, 6);
   const fs::path tracks = dir_ / "track1" / "tracks_2d.csv";

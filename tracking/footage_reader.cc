@@ -15,6 +15,9 @@
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
+#include "core/file_util.h"
+#include "core/image_io.h"
+#include "core/yaml_values.h"
 #include "core/parallel.h"
 #include "core/text.h"
 
@@ -126,32 +129,64 @@ class CameraSource {
   virtual double fps() const { return 0; }
 };
 
+// A folder of numbered images. Frames are named by file number: the
+// reader numbers every folder of the shot from the smallest first number
+// among them (SetBase), so a missing first file is a missing frame of that
+// camera, not a shift of all its frames (docs/formats.md, "Footage input").
 class ImageFolderSource : public CameraSource {
  public:
   explicit ImageFolderSource(const fs::path& dir) : dir_(dir) {
     std::error_code ec;
-    std::map<long long, fs::path> numbered;
     for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+      // Hidden files, among them macOS's AppleDouble `._frame_000001.png`
+      // beside every file copied from a Mac: not frames.
+      const std::string name = it->path().filename().string();
+      if (name.empty() || name.front() == '.') continue;
       if (!it->is_regular_file(ec) || !IsImageFile(it->path())) continue;
       const std::optional<long long> n = TrailingNumber(it->path().stem().string());
       if (!n) continue;
-      const auto [pos, inserted] = numbered.emplace(*n, it->path());
+      const auto [pos, inserted] = numbered_.emplace(*n, it->path());
       if (!inserted) {
         ThrowInputError(dir, 0, "two images carry frame number {}: {} and {}", *n,
                         pos->second.filename().string(), it->path().filename().string());
       }
     }
     if (ec) ThrowInputError(dir, 0, "cannot list the image folder: {}", ec.message());
-    if (numbered.empty()) {
+    if (numbered_.empty()) {
       ThrowInputError(dir, 0, "no numbered images (PNG, TIFF, JPEG) in the folder");
     }
-    const long long base = numbered.begin()->first;
-    for (const auto& [n, path] : numbered) files_.emplace(static_cast<int>(n - base + 1), path);
-    // The first image defines the size; it must decode.
-    std::string error;
-    const cv::Mat first_image = Decode(files_.begin()->second, &error);
-    if (first_image.empty()) ThrowInputError(files_.begin()->second, 0, "{}", error);
-    size_ = first_image.size();
+  }
+  long long first_number() const { return numbered_.begin()->first; }
+  // Numbers the frames (file number - base + 1) and decides the sequence's
+  // image size from the headers of its first files: the size most of the
+  // first three share (the expected one when one of them has it), so one
+  // odd first file is a bad frame, not the size of the sequence.
+  void SetBase(long long base, const cv::Size& expected) {
+    for (const auto& [n, path] : numbered_) files_.emplace(static_cast<int>(n - base + 1), path);
+    std::vector<cv::Size> sizes;
+    std::string first_error;
+    for (auto it = files_.begin(); it != files_.end() && sizes.size() < 3; ++it) {
+      const ImageHeader h = ReadImageHeader(it->second);
+      if (!h.format.empty()) {
+        sizes.push_back(h.size);
+      } else if (first_error.empty()) {
+        first_error = fmt::format("{}: {}", it->second.string(), h.error);
+      }
+    }
+    if (sizes.empty()) ThrowInputError(dir_, 0, "no readable image header: {}", first_error);
+    size_ = sizes[0];
+    for (const cv::Size& s : sizes) {
+      const long shared = std::count(sizes.begin(), sizes.end(), s);
+      if (s == expected || shared * 2 > static_cast<long>(sizes.size())) {
+        size_ = s;
+        if (s == expected) break;
+      }
+    }
+    const int max_side = yaml_values::kMaxImageSide;
+    if (size_.width > max_side || size_.height > max_side || size_.area() <= 0) {
+      ThrowInputError(files_.begin()->second, 0, "declares {}x{} pixels, beyond any camera's",
+                      size_.width, size_.height);
+    }
   }
   cv::Size size() const override { return size_; }
   int first() const override { return files_.begin()->first; }
@@ -160,6 +195,18 @@ class ImageFolderSource : public CameraSource {
     const auto it = files_.find(frame);
     if (it == files_.end()) {
       *error = "no image file for this frame";
+      return {};
+    }
+    // The header first: a file of another size (a decompression bomb
+    // among them) is refused before a pixel is decoded.
+    const ImageHeader h = ReadImageHeader(it->second);
+    if (h.format.empty()) {
+      *error = fmt::format("{}: {}", it->second.string(), h.error);
+      return {};
+    }
+    if (h.size != size_) {
+      *error = fmt::format("{} is {}x{}, the sequence is {}x{}", it->second.string(),
+                           h.size.width, h.size.height, size_.width, size_.height);
       return {};
     }
     cv::Mat image = Decode(it->second, error);
@@ -192,7 +239,8 @@ class ImageFolderSource : public CameraSource {
   }
 
   fs::path dir_;
-  std::map<int, fs::path> files_;
+  std::map<long long, fs::path> numbered_;  // file number -> file
+  std::map<int, fs::path> files_;           // frame -> file
   cv::Size size_;
 };
 
@@ -202,6 +250,15 @@ class ImageFolderSource : public CameraSource {
 class VideoSource : public CameraSource {
  public:
   explicit VideoSource(const fs::path& path) : path_(path) {
+    // FFmpeg opens a still image under any name as a one-frame "video" of
+    // unknown length: refused by its header (docs/reliability.md).
+    const ImageHeader still = ReadImageHeader(path);
+    if (!still.format.empty()) {
+      ThrowInputError(path, 0,
+                      "not a video but a {} image (an image sequence is a folder of numbered "
+                      "images)",
+                      still.format);
+    }
     if (!capture_.open(path.string(), cv::CAP_FFMPEG) || !capture_.isOpened()) {
       ThrowInputError(path, 0, "cannot open as a video (FFmpeg)");
     }
@@ -239,7 +296,12 @@ class VideoSource : public CameraSource {
       }
       return out;
     }
-    *error = "the frame does not decode";
+    // The next picture's timestamp is later: the video holds no picture of
+    // this time (a recorder that dropped frames, variable frame rate).
+    *error = !ended_ && pending_frame_ > frame
+                 ? "the video has no picture at this frame's time (dropped by the recorder, "
+                   "or damaged)"
+                 : "the frame does not decode";
     return {};
   }
   void SkipTo(int frame) override {
@@ -390,7 +452,13 @@ fs::path FindSource(const fs::path& shot, const std::string& name,
     ThrowInputError(shot, 0, "the shot folder does not exist or is not a folder");
   }
   std::vector<fs::path> found;
-  if (fs::is_directory(shot / name, ec)) found.push_back(shot / name);
+  if (fs::is_directory(shot / name, ec)) {
+    found.push_back(shot / name);
+  } else if (fs::exists(fs::symlink_status(shot / name, ec))) {
+    // There, but not a folder to read (a link to itself or to nothing).
+    const std::string why = DescribeUnreadable(shot / name);
+    if (!why.empty()) ThrowInputError(shot / name, 0, "the footage of {} {}", name, why);
+  }
   for (fs::directory_iterator it(shot, ec), end; !ec && it != end; it.increment(ec)) {
     if (it->path().stem() == name && IsVideoFile(it->path()) &&
         it->path().filename().string().front() != '.') {
@@ -400,13 +468,14 @@ fs::path FindSource(const fs::path& shot, const std::string& name,
   if (found.empty()) {
     ThrowInputError(shot, 0,
                     "no footage for camera {}: expected a video {}.mkv/.mov/.mp4/.avi or a "
-                    "folder {}/ of numbered images (or pass --{})",
+                    "folder {}/ of numbered images (or set the footage option {} to its path)",
                     name, name, name, name);
   }
   if (found.size() > 1) {
     std::string list;
     for (const fs::path& p : found) list += " " + p.filename().string();
-    ThrowInputError(shot, 0, "camera {} has more than one source:{} (pass --{} to choose)",
+    ThrowInputError(shot, 0,
+                    "camera {} has more than one source:{} (set the footage option {} to choose)",
                     name, list, name);
   }
   return found[0];
@@ -454,12 +523,48 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
     impl_->paths.push_back(FindSource(shot, name, override_path));
     impl_->sources.push_back(OpenSource(impl_->paths.back()));
     impl_->offsets.push_back(c == 1 ? options.offset1 : 0);
-    const cv::Size size = impl_->sources.back()->size();
+  }
+  // Image folders are paired by file number: all numbered from the
+  // smallest first number among them (0 or 1 alike), so a camera whose
+  // first file is missing starts one frame later instead of every frame
+  // of it being paired with the other camera's previous one.
+  std::vector<std::pair<size_t, ImageFolderSource*>> folders;
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    if (auto* folder = dynamic_cast<ImageFolderSource*>(impl_->sources[c].get())) {
+      folders.emplace_back(c, folder);
+    }
+  }
+  long long base = LLONG_MAX;
+  for (const auto& [c, folder] : folders) base = std::min(base, folder->first_number());
+  for (const auto& [c, folder] : folders) {
+    folder->SetBase(base, c < expected_sizes.size() ? expected_sizes[c] : cv::Size());
+    if (folder->first_number() != base) {
+      impl_->warnings.push_back(fmt::format(
+          "{}'s first image file is number {}, the shot's first is {}: frames are paired by "
+          "file number, so {} starts at frame {} (if its files are numbered differently, "
+          "pair them with offset1)",
+          camera_names[c], folder->first_number(), base, camera_names[c],
+          folder->first_number() - base + 1));
+    } else if (folders.size() < impl_->sources.size() && base > 1) {
+      impl_->warnings.push_back(fmt::format(
+          "{}'s first image file is number {}: it is frame 1, paired with the video's first "
+          "frame (if files before it are missing, pair them with offset1)",
+          camera_names[c], base));
+    }
+  }
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    const cv::Size size = impl_->sources[c]->size();
     if (c < expected_sizes.size() && expected_sizes[c] != size) {
-      ThrowInputError(impl_->paths.back(), 0,
-                      "image size {}x{} does not match the calibration's {}x{} for {}",
+      // FFmpeg turns a video by its rotation metadata (a phone, a camera
+      // mounted on its side): width and height exchanged say so.
+      const bool turned = size == cv::Size(expected_sizes[c].height, expected_sizes[c].width);
+      ThrowInputError(impl_->paths[c], 0,
+                      "image size {}x{} does not match the calibration's {}x{} for {}{}",
                       size.width, size.height, expected_sizes[c].width,
-                      expected_sizes[c].height, name);
+                      expected_sizes[c].height, camera_names[c],
+                      turned ? " (turned by 90 degrees: rotation metadata in the video, or "
+                               "frames exported rotated?)"
+                             : "");
     }
   }
   // The common range, in cam0's numbering.
@@ -477,6 +582,14 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
           "{} ({}) covers frames {}..{}, the cameras in common {}..{}: reading the common range",
           camera_names[c], impl_->paths[c].string(), own_first, own_last, first, last));
     }
+  }
+  // A range beyond the footage is read as far as there is footage, and
+  // said (--frames 1:25 of a 20-frame shot, --frames 0:5).
+  if ((range.first != INT_MIN && range.first < first) ||
+      (range.last != INT_MAX && range.last > last)) {
+    impl_->warnings.push_back(fmt::format(
+        "--frames {} reaches beyond the footage's frames {}..{}: reading {}..{}", options.frames,
+        first, last, std::max(first, range.first), std::min(last, range.last)));
   }
   first = std::max(first, range.first);
   last = std::min(last, range.last);
@@ -503,6 +616,19 @@ double FootageReader::fps() const { return impl_->sources[0]->fps(); }
 
 bool FootageReader::Next(FootageFrame* frame) { return Next(frame, nullptr); }
 
+// A source that no longer exists mid-shot (a network share that went away,
+// a drive unplugged) is not a run of bad frames nor a truncated video: the
+// read stops with an error naming it (docs/reliability.md).
+void FootageReader::ThrowIfGone(const Impl& d) {
+  for (size_t c = 0; c < d.paths.size(); ++c) {
+    std::error_code ec;
+    if (!fs::exists(d.paths[c], ec)) {
+      ThrowInputError(d.paths[c], 0, "the footage of {} disappeared during the read (a network "
+                      "share or drive gone?)", d.names[c]);
+    }
+  }
+}
+
 bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wanted) {
   Impl& d = *impl_;
   for (;;) {
@@ -524,6 +650,7 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
       ended = ended || d.sources[c]->EndedBefore(f + d.offsets[c]);
     }
     if (ended) {
+      ThrowIfGone(d);
       d.last = f - 1;  // a video ended early: what decoded is the shot
       continue;
     }
@@ -549,6 +676,7 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
     });
     for (size_t c = 0; c < d.sources.size(); ++c) {
       if (frame->images[c].empty()) {
+        ThrowIfGone(d);
         const std::string error = frame->errors[c];
         frame->errors[c] = error.empty() ? "no image" : error;
         const std::string w = fmt::format("frame {} {}: {}", f, d.names[c], frame->errors[c]);

@@ -10,10 +10,14 @@
 // convention with an explicit path.
 //
 // Frame numbers start at 1: a video's n-th frame (by its timestamp) is frame
-// n; an image sequence's frame is its file number minus the first file
-// number plus 1, so sequences numbered from 0 or from 1 read the same and a
-// missing file is a missing frame. cam1's frame f + offset1 pairs with
-// cam0's frame f; frames are reported in cam0's numbering.
+// n; an image sequence's frame is its file number minus the shot's first
+// file number (the smallest among its image folders) plus 1, so shots
+// numbered from 0 or from 1 read the same, a missing file is a missing
+// frame, and the cameras' files pair by number even when one camera's
+// first file is missing (warned). Hidden files (macOS `._*`) are not
+// frames. Each file's header is checked against the sequence's size before
+// it is decoded. cam1's frame f + offset1 pairs with cam0's frame f; frames
+// are reported in cam0's numbering.
 //
 // Frames stream: only the current frame is held, so memory does not grow
 // with the length of the shot. A frame that fails to decode in one camera
@@ -92,6 +96,8 @@ class FootageReader {
 
   // Reads the next frame in order; false after the last one. Never throws
   // for a bad frame: the frame comes back with the camera's error set.
+  // Throws InputError when a camera's source no longer exists (a share
+  // gone mid-run): that is not a bad frame.
   bool Next(FootageFrame* frame);
   // Reads the next frame for which wanted(frame number) is true; the frames
   // before it are passed over without being converted into images. A
@@ -108,6 +114,7 @@ class FootageReader {
 
  private:
   struct Impl;
+  static void ThrowIfGone(const Impl& d);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -11,6 +11,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/temp_dir.h"
 
 namespace hmc {
@@ -62,22 +63,163 @@ std::vector<FootageFrame> ReadAll(FootageReader& reader) {
   return frames;
 }
 
+// A shot numbered from 0 reads as the same shot numbered from 1.
 TEST(FootageReaderTest, ImageSequencesNumberedFromZeroOrOneReadTheSame) {
+  for (const int first_number : {0, 1}) {
+    TempDir dir;
+    WriteFolder(dir.path() / "cam0", 0, first_number, 5);
+    WriteFolder(dir.path() / "cam1", 1, first_number, 5);
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+    EXPECT_EQ(reader.first_frame(), 1);
+    EXPECT_EQ(reader.last_frame(), 5);
+    EXPECT_TRUE(reader.warnings().empty());
+    const std::vector<FootageFrame> frames = ReadAll(reader);
+    ASSERT_EQ(frames.size(), 5u);
+    for (int i = 0; i < 5; ++i) {
+      EXPECT_EQ(frames[i].frame, i + 1);
+      ASSERT_TRUE(frames[i].complete());
+      EXPECT_TRUE(SameImage(frames[i].images[0], Pattern(0, i + 1)));
+      EXPECT_TRUE(SameImage(frames[i].images[1], Pattern(1, i + 1)));
+    }
+  }
+}
+
+// Issue 45, item 1: a camera whose first file is missing starts one frame
+// later; every frame pairs the two cameras' files of one number (before:
+// each camera was numbered from its own first file, so cam0's file 2 was
+// paired with cam1's file 1, silently).
+TEST(FootageReaderTest, AMissingFirstFileIsAMissingFrameNotAShift) {
+  for (const int missing : {0, 1}) {
+    TempDir dir;
+    WriteFolder(dir.path() / "cam0", 0, 1, 6, missing == 0 ? std::vector<int>{1} : std::vector<int>{});
+    WriteFolder(dir.path() / "cam1", 1, 1, 6, missing == 1 ? std::vector<int>{1} : std::vector<int>{});
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+    EXPECT_EQ(reader.first_frame(), 2);
+    EXPECT_EQ(reader.last_frame(), 6);
+    bool warned = false;
+    for (const std::string& w : reader.warnings()) {
+      warned |= w.find(fmt::format("cam{} starts at frame 2", missing)) != std::string::npos;
+    }
+    EXPECT_TRUE(warned);
+    const std::vector<FootageFrame> frames = ReadAll(reader);
+    ASSERT_EQ(frames.size(), 5u);
+    for (const FootageFrame& frame : frames) {
+      ASSERT_TRUE(frame.complete()) << frame.frame;
+      EXPECT_TRUE(SameImage(frame.images[0], Pattern(0, frame.frame))) << frame.frame;
+      EXPECT_TRUE(SameImage(frame.images[1], Pattern(1, frame.frame))) << frame.frame;
+    }
+  }
+}
+
+// Issue 45, item 11: macOS AppleDouble files (`._frame_000001.png`, a few
+// bytes of metadata beside every file copied from a Mac) are not frames.
+TEST(FootageReaderTest, AppleDoubleFilesAreSkipped) {
   TempDir dir;
-  WriteFolder(dir.path() / "cam0", 0, 0, 5);
-  WriteFolder(dir.path() / "cam1", 1, 1, 5);
+  WriteFolder(dir.path() / "cam0", 0, 1, 3);
+  WriteFolder(dir.path() / "cam1", 1, 1, 3);
+  for (const char* cam : {"cam0", "cam1"}) {
+    for (int f = 1; f <= 3; ++f) {
+      std::ofstream(dir.path() / cam / fmt::format("._frame_{:06d}.png", f)) << "Mac OS X metadata";
+    }
+  }
   FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
-  EXPECT_EQ(reader.first_frame(), 1);
-  EXPECT_EQ(reader.last_frame(), 5);
+  const std::vector<FootageFrame> frames = ReadAll(reader);
+  ASSERT_EQ(frames.size(), 3u);
+  for (const FootageFrame& frame : frames) {
+    ASSERT_TRUE(frame.complete()) << frame.frame;
+    EXPECT_TRUE(SameImage(frame.images[0], Pattern(0, frame.frame)));
+  }
   EXPECT_TRUE(reader.warnings().empty());
+}
+
+// The CRC-32 of PNG chunks (ISO 3309), for writing a header by hand.
+uint32_t Crc32(const std::string& bytes) {
+  uint32_t crc = 0xffffffffu;
+  for (const unsigned char c : bytes) {
+    crc ^= c;
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+// `png` with its IHDR declaring width x height (CRC fixed, so a decoder
+// believes it): what a decompression bomb's header says.
+std::string WithDeclaredSize(std::string png, uint32_t width, uint32_t height) {
+  for (int i = 0; i < 4; ++i) {
+    png[16 + i] = static_cast<char>(width >> (24 - 8 * i));
+    png[20 + i] = static_cast<char>(height >> (24 - 8 * i));
+  }
+  const uint32_t crc = Crc32(png.substr(12, 17));  // "IHDR" and its 13 bytes
+  for (int i = 0; i < 4; ++i) png[29 + i] = static_cast<char>(crc >> (24 - 8 * i));
+  return png;
+}
+
+// Issue 45, items 8 and 11: a frame whose header declares another size
+// than the sequence's is a bad frame named by its file, refused before a
+// pixel is decoded (a 20000 x 20000 frame: 3.25 GB peak before); an odd
+// first file (1x1) does not become the size of the sequence.
+TEST(FootageReaderTest, FrameOfAnotherSizeIsRefusedByItsHeader) {
+  TempDir dir;
+  WriteFolder(dir.path() / "cam0", 0, 1, 5);
+  WriteFolder(dir.path() / "cam1", 1, 1, 5);
+  const fs::path bomb = dir.path() / "cam0" / "frame_000004.png";
+  const std::string bytes = WithDeclaredSize(ReadFile(bomb), 20000, 20000);
+  { std::ofstream(bomb, std::ios::binary) << bytes; }
+  const fs::path tiny = dir.path() / "cam1" / "frame_000001.png";
+  ASSERT_TRUE(cv::imwrite(tiny.string(), cv::Mat(1, 1, CV_8U, cv::Scalar(9))));
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{}, {kSize, kSize});
   const std::vector<FootageFrame> frames = ReadAll(reader);
   ASSERT_EQ(frames.size(), 5u);
-  for (int i = 0; i < 5; ++i) {
-    EXPECT_EQ(frames[i].frame, i + 1);
-    ASSERT_TRUE(frames[i].complete());
-    EXPECT_TRUE(SameImage(frames[i].images[0], Pattern(0, i + 1)));
-    EXPECT_TRUE(SameImage(frames[i].images[1], Pattern(1, i + 1)));
+  for (const FootageFrame& frame : frames) {
+    EXPECT_EQ(frame.images[0].empty(), frame.frame == 4) << frame.frame;
+    EXPECT_EQ(frame.images[1].empty(), frame.frame == 1) << frame.frame;
   }
+  EXPECT_NE(frames[3].errors[0].find("frame_000004.png is 20000x20000, the sequence is 96x64"),
+            std::string::npos)
+      << frames[3].errors[0];
+  EXPECT_NE(frames[0].errors[1].find("frame_000001.png is 1x1"), std::string::npos)
+      << frames[0].errors[1];
+}
+
+// Issue 45, second campaign: a shot on a share that goes away mid-run is
+// an error naming the source, not a run of bad frames ending in exit 0.
+TEST(FootageReaderTest, ASourceThatDisappearsMidReadIsAnError) {
+  TempDir dir;
+  WriteFolder(dir.path() / "cam0", 0, 1, 5);
+  WriteFolder(dir.path() / "cam1", 1, 1, 5);
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  FootageFrame frame;
+  ASSERT_TRUE(reader.Next(&frame));
+  ASSERT_TRUE(reader.Next(&frame));
+  fs::remove_all(dir.path() / "cam1");
+  try {
+    reader.Next(&frame);
+    ADD_FAILURE() << "read on after the footage went away";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the footage of cam1 disappeared"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Issue 45, item 11: --frames beyond the footage is read as far as there
+// is footage, and said.
+TEST(FootageReaderTest, FramesBeyondTheFootageAreWarned) {
+  TempDir dir;
+  WriteFolder(dir.path() / "cam0", 0, 1, 5);
+  WriteFolder(dir.path() / "cam1", 1, 1, 5);
+  for (const std::string range : {"1:25", "0:3", "-4:"}) {
+    FootageOptions options;
+    options.frames = range;
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, options);
+    ASSERT_EQ(reader.warnings().size(), 1u) << range;
+    EXPECT_NE(reader.warnings()[0].find("--frames " + range + " reaches beyond the footage's "
+                                        "frames 1..5"),
+              std::string::npos)
+        << reader.warnings()[0];
+  }
+  FootageOptions inside;
+  inside.frames = "2:5";
+  EXPECT_TRUE(FootageReader(dir.path(), {"cam0", "cam1"}, inside).warnings().empty());
 }
 
 TEST(FootageReaderTest, Ffv1VideoDecodesLosslesslyWithRangeAndOffset) {
@@ -217,6 +359,28 @@ TEST(FootageReaderTest, BadSourcesAreRefusedWithThePathNamed) {
   const std::string wrong = ErrorOf(shot, {}, {kSize, cv::Size(1280, 1024)});
   EXPECT_NE(wrong.find("cam1.mkv"), std::string::npos) << wrong;
   EXPECT_NE(wrong.find("1280x1024"), std::string::npos) << wrong;
+  EXPECT_EQ(wrong.find("turned"), std::string::npos) << wrong;
+  // Width and height exchanged: footage turned by its rotation metadata.
+  const std::string turned = ErrorOf(shot, {}, {kSize, cv::Size(kSize.height, kSize.width)});
+  EXPECT_NE(turned.find("turned by 90 degrees"), std::string::npos) << turned;
+  // Issue 45, item 9: a still image under a video's name is not a
+  // one-frame video of unknown length.
+  ASSERT_TRUE(cv::imwrite((shot / "still.png").string(), Pattern(1, 1)));
+  fs::rename(shot / "cam1.mkv", shot / "cam1.bak");
+  fs::copy_file(shot / "still.png", shot / "cam1.mkv");
+  const std::string still = ErrorOf(shot, {});
+  EXPECT_NE(still.find("cam1.mkv"), std::string::npos) << still;
+  EXPECT_NE(still.find("not a video but a PNG image"), std::string::npos) << still;
+  // Issue 45, item 11: a cam1/ that links to itself is named for what it
+  // is, without a flag that hmc run does not have.
+  fs::remove(shot / "cam1.mkv");
+  fs::create_directory_symlink("cam1", shot / "cam1");
+  const std::string loop = ErrorOf(shot, {});
+  EXPECT_NE(loop.find((shot / "cam1").string() + ": the footage of cam1"), std::string::npos)
+      << loop;
+  EXPECT_EQ(loop.find("--cam1"), std::string::npos) << loop;
+  fs::remove(shot / "cam1");
+  fs::rename(shot / "cam1.bak", shot / "cam1.mkv");
   FootageOptions bad_range;
   bad_range.frames = "9:";
   EXPECT_NE(ErrorOf(shot, bad_range).find("no frame in common"), std::string::npos);

@@ -1,9 +1,12 @@
 #include "tracking/track_shot.h"
 
+#include <algorithm>
 #include <chrono>
 #include <future>
+#include <map>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
@@ -210,6 +213,23 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                     options.reference_frame);
   }
   for (const std::string& w : reader.warnings()) summary.warnings.push_back(w);
+  std::vector<bool> found(layout.names.size(), false);
+  std::map<std::string, size_t> index;
+  for (size_t m = 0; m < layout.names.size(); ++m) index[layout.names[m]] = m;
+  for (const Track2d& row : output.tracks) found[index.at(row.marker)] = true;
+  for (size_t m = 0; m < found.size(); ++m) {
+    if (!found[m]) summary.never_found.push_back(layout.names[m]);
+  }
+  if (!summary.never_found.empty()) {
+    const size_t shown = std::min<size_t>(summary.never_found.size(), 12);
+    summary.warnings.push_back(fmt::format(
+        "{} of the actor's {} markers never found over the shot ({}{}): hidden from the "
+        "cameras all along, not painted, or painted elsewhere -- if painted elsewhere, the "
+        "names of the dots near them may be wrong",
+        summary.never_found.size(), layout.names.size(),
+        fmt::join(summary.never_found.begin(), summary.never_found.begin() + shown, ", "),
+        summary.never_found.size() > shown ? ", ..." : ""));
+  }
   for (const std::string& w : summary.warnings) spdlog::warn("track: {}", w);
   summary.dot_size_px = dot_size;
   summary.mean_detections = views ? static_cast<double>(detections_total) / views : 0;
@@ -236,6 +256,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                       {"lateral_deg", summary.labelling.jaw.lateral_deg},
                       {"protrude_mm", summary.labelling.jaw.protrude_mm}}}};
   j["warnings"] = summary.warnings;  // with every frame that failed to decode
+  j["never_found"] = summary.never_found;
   j["summary"] = {{"frames", summary.frames},
                   {"skipped_views", summary.skipped_views},
                   {"mean_detections", summary.mean_detections},

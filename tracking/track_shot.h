@@ -52,6 +52,10 @@ struct TrackSummary {
   int swaps_caught = 0;
   int64_t rows = 0;
   double seconds = 0;
+  // The actor's markers named in no view of the shot (hidden all along,
+  // not painted, or painted elsewhere: then the dots near them may carry
+  // wrong names); warned.
+  std::vector<std::string> never_found;
   std::vector<std::string> warnings;
   std::string BriefReport() const;
 };

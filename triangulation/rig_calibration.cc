@@ -38,6 +38,11 @@ void CalibrateOptions::Register(OptionFields* fields) {
   fields->Add("max_focal_sigma_pct", &max_focal_sigma_pct,
               "refine intrinsics only if the tags determine the focal length to this (%)");
   fields->Add("max_iterations", &max_iterations, "Ceres iterations");
+  fields->Add("max_move_mm", &max_move_mm,
+              "a camera solved farther than this from its nominal position is refused "
+              "(cameras swapped or duplicated, another rig's calibration) (mm)");
+  fields->Add("max_turn_deg", &max_turn_deg,
+              "a camera solved turned more than this from its nominal is refused likewise (deg)");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
   tags.Register(fields);
 }
@@ -49,6 +54,8 @@ bool CalibrateOptions::Check() const {
     ok = false;
   };
   if (sample < 1 || sample > 100000) fail("sample must be in [1, 100000]");
+  if (!(max_move_mm > 0)) fail("max_move_mm must be positive");
+  if (!(max_turn_deg > 0 && max_turn_deg <= 180)) fail("max_turn_deg must be in (0, 180]");
   if (refine != "extrinsics" && refine != "intrinsics") {
     fail("refine must be extrinsics or intrinsics, got '" + refine + "'");
   }

@@ -60,6 +60,8 @@ struct CalibrateOptions {
   double huber_px = 1;             // Huber loss scale on a corner's residual (px)
   double knock_px = 0.5;           // corners of a camera moving by more than this between two parts of the shot: the rig changed (px RMS)
   double max_focal_sigma_pct = 0.1;  // refine intrinsics only if the tags determine the focal length to this (%)
+  double max_move_mm = 20;         // a camera solved farther than this from its nominal position: refused (swapped, duplicated, another rig)
+  double max_turn_deg = 5;         // a camera solved turned more than this from its nominal: refused likewise
   int max_iterations = 100;        // Ceres iterations
   int threads = 0;                 // worker threads (0 = all cores)
   TagDetectorOptions tags;         // tags.*
