@@ -268,8 +268,15 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
                    minor = 4 * std::sqrt(std::max(1e-9, tr / 2 - disc));
       // A painted disc seen at any angle is at most its diameter long (the
       // lip line and lashes are longer), an ellipse (fill of its moment
-      // ellipse near 1), and not thinner than max_elongation.
-      if (major < min_d || major > max_d || major > options.max_elongation * minor) continue;
+      // ellipse near 1), and not thinner than max_elongation. The
+      // thresholded blob of a thin ellipse can be a single pixel wide
+      // (minor 1.15 px) where the ellipse is up to a pixel wider (its
+      // partly covered rim falls below the threshold), so the ratio is
+      // tested here with that pixel added and again, exactly, on the
+      // darkening's own moments after the centroid.
+      if (major < min_d || major > max_d || major > options.max_elongation * (minor + 1)) {
+        continue;
+      }
       if (area < options.min_fill * M_PI / 4 * major * minor) continue;
       const double radius = std::sqrt(area / M_PI);
       BlobEllipse shape;
@@ -285,7 +292,7 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
         continue;
       }
       const Refined refined = RefineCentre(image, labels, i, start, shape, sign);
-      if (!refined.ok) continue;
+      if (!refined.ok || refined.elongation > options.max_elongation) continue;
       if ((refined.centre - start).norm() > radius + 1) continue;
       DotDetection dot;
       dot.pixel = refined.centre;

@@ -102,10 +102,9 @@ TEST(DotDetectorTest, CentresAreSubPixelAccurateOnShadedNoisySkin) {
 TEST(DotDetectorTest, CentresEdgeOnEllipsesAtSubPixelPositions) {
   DotDetectorOptions options;
   for (int seed = 1; seed <= 3; ++seed) {
-    // cos 0.15 (6.7:1) is the target but not met yet: 1 of 40
-    // 9 px ellipses missed on two seeds (the thresholded blob is thinner
-    // than the ellipse and measures beyond max_elongation) and median
-    // 0.062 px on 6 px ones (0.9 px wide); docs/tracking.md.
+    // cos 0.15 (6.7:1) is the target but not met yet on 6 px
+    // ellipses (0.9 px wide): 1 of 40 missed per seed, median up to
+    // 0.062 px; the 9 and 12 px ones pass (docs/tracking.md).
     for (double cos : {0.2, 0.25, 0.3}) {
       for (double diameter : {6.0, 9.0, 12.0}) {
         const Scene scene = MakeScene(10 * seed, diameter, 40, 1.0, cos, 0.05);
