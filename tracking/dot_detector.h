@@ -14,7 +14,10 @@
 //    seen from any angle is an ellipse at most its diameter long: the long
 //    axis must be within [min_size, max_size] x the expected diameter, the
 //    axis ratio <= max_elongation (7: a disc seen at view cosine 0.14, so
-//    dots seen edge-on at the cheeks and under the chin are kept) and
+//    dots seen edge-on at the cheeks and under the chin are kept; tested
+//    on the darkening's weighted moments after step 3, the binary blob's
+//    minor axis given a pixel of slack, since a thin ellipse thresholds to
+//    a blob one pixel wide whatever its width) and
 //    the blob must fill >= min_fill of its moment ellipse; plus clearance
 //    from the image border. This rejects nostrils, the mouth opening and eye
 //    sockets (too big), the lip line and lashes (too long), ragged shapes
