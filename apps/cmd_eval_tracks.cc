@@ -1,7 +1,9 @@
 // `hmc eval-tracks --tracks tracks_2d.csv --truth SHOT/dots_2d.csv [--json FILE]`:
 // how `hmc track`'s output compares with a synthetic shot's ground truth
 // (tracking/track_eval.h): accuracy of full dots, recall of full and partial
-// dots, wrong names, rows on hidden dots.
+// dots, wrong names, rows on hidden dots; with a shot that has the `whole`
+// and `cos` columns, recall and centre error of whole dots per view-cosine
+// bin.
 #include <memory>
 #include <string>
 
@@ -27,8 +29,9 @@ HMC_COMMAND(EvalTracks, "", "eval-tracks",
     PrepareOutputPaths({{*json, "--json"}}, {{*tracks, "--tracks"}, {*truth, "--truth"}});
     const TrackScore s = ScoreTracks(ReadTracks2dCsv(*tracks), ReadDots2dCsv(*truth));
     spdlog::info("eval-tracks: {}", s.BriefReport());
+    if (s.has_whole) spdlog::info("eval-tracks: {}", s.WholeReport());
     if (!json->empty()) {
-      const nlohmann::json j = {
+      nlohmann::json j = {
           {"rows", s.rows},           {"full", s.full},
           {"full_named", s.full_named}, {"partial", s.partial},
           {"partial_named", s.partial_named}, {"hidden", s.hidden},
@@ -37,6 +40,16 @@ HMC_COMMAND(EvalTracks, "", "eval-tracks",
           {"partial_half", s.partial_half}, {"partial_half_named", s.partial_half_named},
           {"median_px", s.median_px}, {"p95_px", s.p95_px},
           {"max_px", s.max_px}};
+      if (s.has_whole) {
+        auto bin = [](const WholeDotBin& b) {
+          return nlohmann::json{{"views", b.views}, {"named", b.named},
+                                {"median_px", b.median_px}, {"p95_px", b.p95_px}};
+        };
+        nlohmann::json bins = nlohmann::json::object();
+        for (int i = 0; i < kNumCosBins; ++i) bins[CosBinName(i)] = bin(s.whole_bins[i]);
+        j["whole_by_cos"] = bins;
+        j["whole_from_cos_0.15"] = bin(s.whole_from_015);
+      }
       WriteFileAtomic(*json, j.dump(1));
     }
     return 0;

@@ -91,17 +91,22 @@ void WriteTracks2dCsv(const std::filesystem::path& path,
 }
 
 std::vector<Dot2dTruth> ReadDots2dCsv(const std::filesystem::path& path) {
-  std::vector<std::string> header = {"frame", "camera", "marker", "x",  "y",
-                                     "visible", "disc", "cx",   "cy", "seen"};
+  std::vector<std::string> header = {"frame", "camera", "marker", "x",   "y",
+                                     "visible", "disc", "cx",   "cy",  "seen",
+                                     "cos",   "whole",  "wcx",  "wcy"};
   const std::string text = ReadFile(path);
-  // `seen` came later: a file whose first non-blank line lacks it is read
-  // without it.
+  // `seen`, then `cos,whole,wcx,wcy` came later: a file whose first
+  // non-blank line ends at `cy` or `seen` is read without the later ones.
   bool first = true;
   ForEachLine(text, [&](int number, std::string_view line) {
     if (!first || Trim(line).empty()) return;
     first = false;
     const std::vector<std::string> fields = SplitCsvRecord(line, path, number);
-    if (fields.empty() || fields.back() != "seen") header.pop_back();
+    if (fields.empty() || fields.back() == "cy") {
+      header.resize(9);
+    } else if (fields.back() == "seen") {
+      header.resize(10);
+    }
   });
   std::vector<Dot2dTruth> dots;
   ForEachCsvRowInText(text, path, header, [&](const CsvRow& row) {
@@ -130,6 +135,17 @@ std::vector<Dot2dTruth> ReadDots2dCsv(const std::filesystem::path& path) {
     if (row.size() > 9) {
       d.seen = row.Finite(9);
       if (d.seen < 0 || d.seen > 1) row.Fail("seen {} is outside [0, 1]", d.seen);
+    }
+    if (row.size() > 10) {
+      d.has_cos = true;
+      d.view_cos = row.Finite(10);
+      if (std::abs(d.view_cos) > 1) row.Fail("cos {} is outside [-1, 1]", d.view_cos);
+      d.whole = row.Int(11);
+      if (d.whole != 0 && d.whole != 1) row.Fail("whole must be 0 or 1");
+      if (!row.Empty(12) || !row.Empty(13)) {
+        d.has_whole_centroid = true;
+        d.whole_centroid = Vec2(row.Finite(12), row.Finite(13));
+      }
     }
     dots.push_back(std::move(d));
   });

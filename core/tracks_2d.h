@@ -49,6 +49,15 @@ struct Dot2dTruth {
   // Fraction of the disc seen, in [0, 1] (docs/formats.md); negative when
   // the file has no `seen` column.
   double seen = -1;
+  // The later columns (docs/formats.md), absent from older files: the view
+  // cosine at the marker's point (has_cos), whether the whole disc is in
+  // view however grazing (`whole`: -1 unknown, 0, 1), and a whole dot's
+  // rim centroid (has_whole_centroid; cx, cy for a full dot).
+  bool has_cos = false;
+  double view_cos = 0;
+  int whole = -1;
+  bool has_whole_centroid = false;
+  Vec2 whole_centroid = Vec2::Zero();
 };
 
 // Reads dots_2d.csv in file order. Throws InputError with file and line.

@@ -102,5 +102,41 @@ TEST(Tracks2dTest, ReadsTheSeenFractionAndRejectsOneOutOfRange) {
   EXPECT_THROW(ReadDots2dCsv(dir.path() / "short.csv"), InputError);
 }
 
+TEST(Tracks2dTest, ReadsTheViewCosineAndWholeDotsAndRejectsBadOnes) {
+  TempDir dir;
+  const std::string header = "frame,camera,marker,x,y,visible,disc,cx,cy,seen,cos,whole,wcx,wcy\n";
+  WriteFileAtomic(dir.path() / "d.csv",
+                  header + "1,cam0,a,10.5,20.25,1,full,10.6,20.2,0.9,0.95,1,10.6,20.2\n"
+                           "1,cam0,b,11,21,1,partial,,,0.2,0.21,1,11.3,21.1\n"
+                           "1,cam0,c,12,22,1,partial,,,0.1,0.4,0,,\n");
+  const std::vector<Dot2dTruth> dots = ReadDots2dCsv(dir.path() / "d.csv");
+  ASSERT_EQ(dots.size(), 3u);
+  EXPECT_TRUE(dots[1].has_cos);
+  EXPECT_DOUBLE_EQ(dots[1].view_cos, 0.21);
+  EXPECT_EQ(dots[1].whole, 1);
+  EXPECT_TRUE(dots[1].has_whole_centroid);
+  EXPECT_FALSE(dots[1].has_centroid);
+  EXPECT_DOUBLE_EQ(dots[1].whole_centroid.x(), 11.3);
+  EXPECT_EQ(dots[2].whole, 0);
+  EXPECT_FALSE(dots[2].has_whole_centroid);
+  // Older files: no cos, `whole` unknown.
+  WriteFileAtomic(dir.path() / "old.csv", "frame,camera,marker,x,y,visible,disc,cx,cy,seen\n"
+                                          "1,cam0,a,10.5,20.25,1,full,10.6,20.2,1.000\n");
+  const std::vector<Dot2dTruth> old = ReadDots2dCsv(dir.path() / "old.csv");
+  ASSERT_EQ(old.size(), 1u);
+  EXPECT_FALSE(old[0].has_cos);
+  EXPECT_EQ(old[0].whole, -1);
+  for (const char* bad : {"1,cam0,b,11,21,1,partial,,,0.2,1.5,1,11,21\n",
+                          "1,cam0,b,11,21,1,partial,,,0.2,0.2,2,11,21\n"}) {
+    WriteFileAtomic(dir.path() / "bad.csv", header + bad);
+    try {
+      ReadDots2dCsv(dir.path() / "bad.csv");
+      FAIL() << "accepted " << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.csv:2"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace hmc

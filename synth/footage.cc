@@ -724,8 +724,10 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
     const Eigen::Matrix2d L = dot_metric_[m].llt().matrixL();
     // The centre, then the disc: each sample's foreshortening where it is
     // unoccluded, and whether it is seen squarely.
-    double seen = dot.visible ? std::max(0.0, view_cos(sp.face, dot.in_cam)) : 0.0;
+    dot.view_cos = view_cos(sp.face, dot.in_cam);
+    double seen = dot.visible ? std::max(0.0, dot.view_cos) : 0.0;
     int square = dot.visible && not_grazing(sp.face, dot.in_cam);
+    int in_view = dot.visible;  // samples on the painted mesh, facing and unoccluded
     for (size_t k = 0; k < unit_samples.size(); ++k) {
       const Vec2 offset =
           L.transpose().triangularView<Eigen::Upper>().solve(options_.dot_radius * unit_samples[k]);
@@ -733,14 +735,17 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
       if (sample.face < 0) continue;  // off the painted mesh
       const Vec3 q = cam_from_head * EvaluateSurfacePoint(sample, F_, X_head);
       if (!unoccluded(sample.face, q, &pixel)) continue;
-      seen += std::max(0.0, view_cos(sample.face, q));
+      const double cos_q = view_cos(sample.face, q);
+      seen += std::max(0.0, cos_q);
       square += not_grazing(sample.face, q);
+      in_view += cos_q > 0;
     }
     const int samples = static_cast<int>(unit_samples.size()) + 1;
     dot.seen = seen / samples;
     if (!dot.visible) return;
     dot.disc = square == samples ? DotDisc::kFull : DotDisc::kPartial;
-    if (dot.disc != DotDisc::kFull) return;
+    dot.whole = in_view == samples;
+    if (!dot.whole) return;
     // The image of the whole dot is the inside of its projected rim: its
     // centroid is the rim polygon's area centroid.
     double area = 0;
@@ -766,7 +771,8 @@ std::vector<DotTruth> FootageRenderer::ProjectDots(int camera, const SceneState&
       }
       previous = q;
     }
-    if (ok && std::abs(area) > 0) dot.centroid = sum / (3 * area);
+    if (ok && std::abs(area) > 0) dot.whole_centroid = sum / (3 * area);
+    if (dot.disc == DotDisc::kFull) dot.centroid = dot.whole_centroid;
   });
   return out;
 }

@@ -116,6 +116,16 @@ struct DotTruth {
   // or cut by a silhouette little; a dot whose centre is hidden may still
   // show part of its disc.
   double seen = 0.0;
+  // The cosine between the skin's normal at the marker's point and the
+  // view ray (negative: back-facing); 0 where the point does not project.
+  double view_cos = 0.0;
+  // The whole disc is in view (its centre and every disc sample on the
+  // painted mesh, facing the camera and unoccluded), however grazing: a
+  // kFull dot, or a kPartial one that is only foreshortened.
+  bool whole = false;
+  // For a `whole` dot, the area centroid of its projected rim (as
+  // `centroid`, which only kFull dots have); NaN for other dots.
+  Vec2 whole_centroid = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 class FootageRenderer {

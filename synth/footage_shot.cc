@@ -266,7 +266,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   truth.fps = perf.fps;
   std::vector<BundleFrame> bundles_head(num_frames), bundles_helmet(num_frames);
   std::vector<JawFrame> jaw(num_frames);
-  std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy,seen\n";
+  std::string dots_csv = "frame,camera,marker,x,y,visible,disc,cx,cy,seen,cos,whole,wcx,wcy\n";
   std::vector<PoseFrame> poses(num_frames);
   SynthShotSummary summary;
   summary.frames = num_frames;
@@ -336,14 +336,14 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
         if (!dots[m].projects) continue;
         visible += dots[m].visible;
         full += dots[m].disc == DotDisc::kFull;
-        const Vec2& centroid = dots[m].centroid;
+        auto pair = [](const Vec2& p) {
+          return p.allFinite() ? fmt::format("{:.6f},{:.6f}", p.x(), p.y()) : std::string(",");
+        };
         dots_csv += fmt::format(
-            "{},{},{},{:.6f},{:.6f},{},{},{},{:.3f}\n", frame, rig.cameras[c].name,
+            "{},{},{},{:.6f},{:.6f},{},{},{},{:.3f},{:.3f},{},{}\n", frame, rig.cameras[c].name,
             actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
-            DotDiscName(dots[m].disc),
-            centroid.allFinite() ? fmt::format("{:.6f},{:.6f}", centroid.x(), centroid.y())
-                                 : std::string(","),
-            dots[m].seen);
+            DotDiscName(dots[m].disc), pair(dots[m].centroid), dots[m].seen, dots[m].view_cos,
+            dots[m].whole ? 1 : 0, pair(dots[m].whole_centroid));
       }
       if (contact.count(f)) {
         panels.push_back(ContactPanel(view.image, dots, options.contact_dots,

@@ -124,11 +124,11 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   std::istringstream in(ReadFile(a / "dots_2d.csv"));
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "frame,camera,marker,x,y,visible,disc,cx,cy,seen");
-  int rows = 0, visible = 0, full = 0, cut = 0;
+  EXPECT_EQ(line, "frame,camera,marker,x,y,visible,disc,cx,cy,seen,cos,whole,wcx,wcy");
+  int rows = 0, visible = 0, full = 0, cut = 0, grazing_whole = 0;
   while (std::getline(in, line)) {
     std::istringstream row(line);
-    std::string frame, cam, marker, x, y, vis, disc, cx, cy, seen;
+    std::string frame, cam, marker, x, y, vis, disc, cx, cy, seen, cos, whole, wcx, wcy;
     std::getline(row, frame, ',');
     std::getline(row, cam, ',');
     std::getline(row, marker, ',');
@@ -139,6 +139,10 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
     std::getline(row, cx, ',');
     std::getline(row, cy, ',');
     std::getline(row, seen, ',');
+    std::getline(row, cos, ',');
+    std::getline(row, whole, ',');
+    std::getline(row, wcx, ',');
+    std::getline(row, wcy, ',');
     // How much of the dot is seen, relative to face-on: at least cos 60
     // degrees of a full dot (every sample within 60 degrees of square),
     // less than that of some partial ones (slivers, cut dots).
@@ -156,6 +160,23 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
       EXPECT_LT((Vec2(std::stod(cx), std::stod(cy)) - Vec2(std::stod(x), std::stod(y))).norm(),
                 1.5) << line;
     }
+    // The view cosine at the marker's point: a full dot is seen within 60
+    // degrees of square. A whole dot (every disc sample in view, however
+    // grazing) has its rim centroid, the full ones' cx, cy.
+    const double view_cos = std::stod(cos);
+    EXPECT_LE(std::abs(view_cos), 1.0) << line;
+    if (disc == "full") {
+      EXPECT_GE(view_cos, 0.5 - 1e-3) << line;
+      EXPECT_EQ(whole, "1") << line;
+      EXPECT_EQ(wcx, cx) << line;
+      EXPECT_EQ(wcy, cy) << line;
+    }
+    if (vis == "1") {
+      EXPECT_GT(view_cos, 0.0) << line;
+    }
+    EXPECT_TRUE(whole == "0" || (whole == "1" && vis == "1")) << line;
+    EXPECT_EQ(wcx.empty(), whole != "1") << line;
+    grazing_whole += whole == "1" && disc == "partial";
     // A dot is fully visible only if its centre is.
     EXPECT_TRUE(disc == "full" || disc == "partial" || disc == "hidden") << disc;
     EXPECT_EQ(vis == "1", disc != "hidden") << line;
@@ -173,6 +194,7 @@ TEST_F(SynthShotTest, LosslessDeterministicAndConsistent) {
   EXPECT_GT(full, rows / 10);
   EXPECT_LT(full, visible);
   EXPECT_GT(cut, 0);  // some partial dots are slivers or cut
+  EXPECT_GT(grazing_whole, 0);  // and some are whole but seen edge-on
 }
 
 }  // namespace

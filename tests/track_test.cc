@@ -89,6 +89,7 @@ TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
     const TrackScore s = ScoreTracks(tracks, ReadDots2dCsv(shot / "dots_2d.csv"));
     RecordProperty(fmt::format("seed{}", seed), s.BriefReport());
     std::printf("seed %d: %s\n", seed, s.BriefReport().c_str());
+    std::printf("seed %d: %s\n", seed, s.WholeReport().c_str());
     // Issue targets met at this size (docs/tracking.md has the full-size figures).
     EXPECT_LE(s.median_px, 0.05) << "seed " << seed;
     EXPECT_LE(s.p95_px, 0.15) << "seed " << seed;
@@ -97,6 +98,15 @@ TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
     // 99.5 % and 0 are not met yet: docs/tracking.md, "What fails").
     EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
     EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
+    // Whole dots seen edge-on (issue 44; dots ~4 px here, so a dot at view
+    // cosine 0.2 is under a pixel wide): those at 0.3-0.4 are named as
+    // often as face-on ones, and those down to 0.15 are centred as well as
+    // full ones; the 0.15-0.3 bin (about 45 % named here) misses the
+    // issue's 99 % (docs/tracking.md).
+    ASSERT_TRUE(s.has_whole);
+    EXPECT_GE(s.whole_bins[2].Recall(), 0.9) << "seed " << seed;
+    EXPECT_GE(s.whole_from_015.Recall(), 0.8) << "seed " << seed;
+    EXPECT_LE(s.whole_from_015.median_px, 0.05) << "seed " << seed;
     const nlohmann::json diag = nlohmann::json::parse(ReadFile(out.parent_path() / "d.json"));
     EXPECT_EQ(diag["frames"].size(), 6u);
     EXPECT_TRUE(diag["labelling"]["ok"].get<bool>());

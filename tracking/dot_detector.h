@@ -13,18 +13,27 @@
 //    the ellipse of the same moments (axes 4 sqrt(lambda_i)). A painted disc
 //    seen from any angle is an ellipse at most its diameter long: the long
 //    axis must be within [min_size, max_size] x the expected diameter, the
-//    axis ratio <= max_elongation and
+//    axis ratio <= max_elongation (7: a disc seen at view cosine 0.14, so
+//    dots seen edge-on at the cheeks and under the chin are kept; tested
+//    on the darkening's weighted moments after step 3, the binary blob's
+//    minor axis given a pixel of slack, since a thin ellipse thresholds to
+//    a blob one pixel wide whatever its width) and
 //    the blob must fill >= min_fill of its moment ellipse; plus clearance
 //    from the image border. This rejects nostrils, the mouth opening and eye
 //    sockets (too big), the lip line and lashes (too long), ragged shapes
 //    and isolated noise pixels (too small).
 // 3. Sub-pixel centre: the skin around the dot is fitted by a plane
-//    B(x, y) = a + b x + c y on an annulus (pixels darker than 85 % of the
-//    annulus median dropped), and the centre is the centroid of the
-//    relative darkening above the skin texture, w = max(0, (B - I) / B -
-//    0.2), over a disc 1 px larger than the blob's equivalent radius (the
-//    anti-aliased rim), iterated with the disc re-centred; pixels of other
-//    blobs are left out. Dividing by B makes w flat over the
+//    B(x, y) = a + b x + c y on a ring 1.5-3.5 px outside the blob's
+//    ellipse (its moment ellipse scaled to its area; pixels darker than
+//    85 % of the ring median dropped), and the centre is the centroid of
+//    the relative darkening above the skin texture, w = max(0, (B - I) / B
+//    - 0.2 q), q the ellipse's axis ratio (<= 1), over the ellipse grown by
+//    1 px (the anti-aliased rim), iterated with the ellipse re-centred;
+//    pixels of other blobs are left out. Across a thin ellipse (a dot seen
+//    edge-on) every pixel is partly covered, and the floor would be a
+//    threshold on the coverage whose centroid locks to the pixel grid:
+//    hence its scaling by q; a round window would clip such a dot and a
+//    round ring would hold its ends. Dividing by B makes w flat over the
 //    painted disc whatever the shading, so a light gradient does not pull
 //    the centroid; the centroid of a uniform anti-aliased disc is its area
 //    centroid, which is what dots_2d.csv's cx, cy give.
@@ -48,7 +57,7 @@ struct DotDetectorOptions {
   double min_step = 0.03;         // smallest absolute darkening of a dot pixel (fraction of full scale)
   double min_size = 0.45;         // smallest equivalent diameter (fraction of the expected)
   double max_size = 1.9;          // largest equivalent diameter (fraction of the expected)
-  double max_elongation = 5;      // largest ratio of the blob's axes (a disc seen at 78 deg)
+  double max_elongation = 7;      // largest ratio of the blob's axes (a disc seen at 82 deg, cos 0.14)
   double min_fill = 0.6;          // smallest fraction of the blob's moment ellipse covered
   double background_scale = 4;    // box of the local mean (dot diameters)
   int border_px = 3;              // clearance from the image border (px)

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -18,7 +19,12 @@ struct Scene {
   std::vector<Vec2> centres;
 };
 
-Scene MakeScene(int seed, double diameter, int count, double noise) {
+// `cos` < 1: each disc seen at that view cosine, an ellipse of axes
+// diameter and cos x diameter at a random orientation (its area centroid
+// is still its centre). `texture`: the skin's albedo varies by +-texture
+// (uniform per pixel, as a rough stand-in for pores and freckles).
+Scene MakeScene(int seed, double diameter, int count, double noise, double cos = 1,
+                double texture = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0, 1);
   std::normal_distribution<double> normal(0, 1);
@@ -26,7 +32,10 @@ Scene MakeScene(int seed, double diameter, int count, double noise) {
   cv::Mat radiance(h, w, CV_64F);
   const double gx = 0.3 * (u01(rng) - 0.5) / w, gy = 0.3 * (u01(rng) - 0.5) / h;
   for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) radiance.at<double>(y, x) = 0.6 + gx * (x - w / 2) + gy * (y - h / 2);
+    for (int x = 0; x < w; ++x) {
+      radiance.at<double>(y, x) = (0.6 + gx * (x - w / 2) + gy * (y - h / 2)) *
+                                  (1 + texture * (2 * u01(rng) - 1));
+    }
   }
   Scene scene;
   const double spacing = std::max(4 * diameter, 24.0);
@@ -37,13 +46,16 @@ Scene MakeScene(int seed, double diameter, int count, double noise) {
   }
   const double r = diameter / 2;
   for (const Vec2& c : scene.centres) {
+    const double angle = cos < 1 ? M_PI * u01(rng) : 0;
+    const double ca = std::cos(angle), sa = std::sin(angle);
     for (int y = static_cast<int>(c.y() - r - 2); y <= c.y() + r + 2; ++y) {
       for (int x = static_cast<int>(c.x() - r - 2); x <= c.x() + r + 2; ++x) {
         int inside = 0;
         for (int sy = 0; sy < 8; ++sy) {
           for (int sx = 0; sx < 8; ++sx) {
-            const double px = x - 0.5 + (sx + 0.5) / 8, py = y - 0.5 + (sy + 0.5) / 8;
-            inside += std::hypot(px - c.x(), py - c.y()) <= r;
+            const double px = x - 0.5 + (sx + 0.5) / 8 - c.x(), py = y - 0.5 + (sy + 0.5) / 8 - c.y();
+            const double along = ca * px + sa * py, across = (-sa * px + ca * py) / cos;
+            inside += std::hypot(along, across) <= r;
           }
         }
         const double coverage = inside / 64.0;
@@ -79,6 +91,43 @@ TEST(DotDetectorTest, CentresAreSubPixelAccurateOnShadedNoisySkin) {
       // targets for full dots (median 0.05 px, p95 0.15 px).
       EXPECT_LT(errors[errors.size() / 2], 0.05) << "seed " << seed << " d " << diameter;
       EXPECT_LT(errors[errors.size() * 95 / 100], 0.15) << "seed " << seed << " d " << diameter;
+    }
+  }
+}
+
+// Dots seen edge-on (issue 44): ellipses of 3.3:1 to 5:1 (view cosine
+// 0.3 down to 0.2) at random sub-pixel centres and orientations, on
+// textured, shaded, noisy skin; each is found and centred on its area
+// centroid (docs/tracking.md targets: median 0.05 px, p95 0.2 px).
+TEST(DotDetectorTest, CentresEdgeOnEllipsesAtSubPixelPositions) {
+  DotDetectorOptions options;
+  for (int seed = 1; seed <= 3; ++seed) {
+    // cos 0.15 (6.7:1) is the issue's target but not met yet on 6 px
+    // ellipses (0.9 px wide): 1 of 40 missed per seed, median up to
+    // 0.062 px; the 9 and 12 px ones pass (docs/tracking.md).
+    for (double cos : {0.2, 0.25, 0.3}) {
+      for (double diameter : {6.0, 9.0, 12.0}) {
+        const Scene scene = MakeScene(10 * seed, diameter, 40, 1.0, cos, 0.05);
+        const std::vector<DotDetection> found = DetectDots(scene.image, options, diameter);
+        std::vector<double> errors;
+        int missed = 0;
+        for (const Vec2& c : scene.centres) {
+          double best = 1e9;
+          for (const DotDetection& d : found) best = std::min(best, (d.pixel - c).norm());
+          if (best > 1) {
+            ++missed;
+          } else {
+            errors.push_back(best);
+          }
+        }
+        const std::string what = fmt::format("seed {} cos {} d {}", seed, cos, diameter);
+        EXPECT_EQ(missed, 0) << what;
+        EXPECT_EQ(found.size(), scene.centres.size()) << what;
+        ASSERT_FALSE(errors.empty()) << what;
+        std::sort(errors.begin(), errors.end());
+        EXPECT_LT(errors[errors.size() / 2], 0.05) << what;
+        EXPECT_LT(errors[errors.size() * 95 / 100], 0.2) << what;
+      }
     }
   }
 }

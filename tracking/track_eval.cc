@@ -24,6 +24,25 @@ std::string TrackScore::BriefReport() const {
       100 * HiddenFraction());
 }
 
+std::string CosBinName(int bin) {
+  return bin + 1 < kNumCosBins ? fmt::format("{:g}-{:g}", kCosBins[bin], kCosBins[bin + 1])
+                               : fmt::format(">={:g}", kCosBins[bin]);
+}
+
+std::string TrackScore::WholeReport() const {
+  if (!has_whole) return std::string();
+  std::string out = "whole dots by view cosine:";
+  auto one = [](const WholeDotBin& b) {
+    return fmt::format("named {:.2f} % of {}, median {:.4f} px, p95 {:.4f} px", 100 * b.Recall(),
+                       b.views, b.median_px, b.p95_px);
+  };
+  for (int i = 0; i < kNumCosBins; ++i) {
+    out += fmt::format(" [{}] {};", CosBinName(i), one(whole_bins[i]));
+  }
+  out += fmt::format(" [>=0.15] {}", one(whole_from_015));
+  return out;
+}
+
 namespace {
 
 double Quantile(std::vector<double> v, double q) {
@@ -53,10 +72,28 @@ TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot
     if (d.visible) visible_by_view[{d.frame, d.camera}].push_back(&d);
   }
   std::vector<double> errors;
+  std::vector<double> whole_errors[kNumCosBins], whole_from_015_errors;
   for (const Dot2dTruth& d : truth) {
     if (d.frame < first) continue;
     auto it = by_key.find({d.frame, d.camera, d.marker});
     const bool named = it != by_key.end();
+    if (d.whole >= 0) score.has_whole = true;
+    if (d.whole == 1 && d.has_cos && d.has_whole_centroid) {
+      int bin = 0;
+      while (bin + 1 < kNumCosBins && d.view_cos >= kCosBins[bin + 1]) ++bin;
+      const bool edge_015 = d.view_cos >= kCosBins[1];
+      ++score.whole_bins[bin].views;
+      score.whole_from_015.views += edge_015;
+      if (named) {
+        const double e = (it->second->pixel - d.whole_centroid).norm();
+        ++score.whole_bins[bin].named;
+        whole_errors[bin].push_back(e);
+        if (edge_015) {
+          ++score.whole_from_015.named;
+          whole_from_015_errors.push_back(e);
+        }
+      }
+    }
     switch (d.disc) {
       case DotDiscState::kFull:
         ++score.full;
@@ -89,7 +126,9 @@ TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot
       continue;
     }
     const Dot2dTruth& own = *it->second;
-    const Vec2 own_centre = own.has_centroid ? own.centroid : own.pixel;
+    const Vec2 own_centre = own.has_centroid         ? own.centroid
+                            : own.has_whole_centroid ? own.whole_centroid
+                                                     : own.pixel;
     const bool off = (t.pixel - own_centre).norm() > wrong_px;
     bool other = false;
     const double own_point_d = (t.pixel - own.pixel).norm();
@@ -100,6 +139,12 @@ TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot
     score.wrong_other += other;
     score.wrong_off += off && !other;
   }
+  for (int i = 0; i < kNumCosBins; ++i) {
+    score.whole_bins[i].median_px = Quantile(whole_errors[i], 0.5);
+    score.whole_bins[i].p95_px = Quantile(whole_errors[i], 0.95);
+  }
+  score.whole_from_015.median_px = Quantile(whole_from_015_errors, 0.5);
+  score.whole_from_015.p95_px = Quantile(whole_from_015_errors, 0.95);
   score.median_px = Quantile(errors, 0.5);
   score.p95_px = Quantile(errors, 0.95);
   score.max_px = errors.empty() ? 0 : *std::max_element(errors.begin(), errors.end());

@@ -15,6 +15,12 @@
 //    on a partial dot mostly the centroid of the part that is seen);
 //  - partial dot-views by how much of the disc is seen (`seen` in
 //    dots_2d.csv, when present): recall of those with at least half of it.
+//  - whole dot-views (`whole` 1 in dots_2d.csv, when present: the whole
+//    disc in view however grazing, so full dots and the partial ones that
+//    are only foreshortened) by the view cosine at the marker's point, in
+//    kCosBins: recall, and the centre error against the rim centroid
+//    (wcx, wcy). The wrong-name test measures a whole dot's row from that
+//    centroid too.
 // Only frames from the first tracked frame on are counted.
 #pragma once
 
@@ -26,6 +32,18 @@
 
 namespace hmc {
 
+// Lower edges of the view-cosine bins of whole dots: [0, 0.15), [0.15,
+// 0.3), [0.3, 0.4), [0.4, 1] (issue 44: dots seen edge-on).
+constexpr double kCosBins[] = {0, 0.15, 0.3, 0.4};
+constexpr int kNumCosBins = 4;
+std::string CosBinName(int bin);  // "0-0.15", ..., ">=0.4"
+
+struct WholeDotBin {
+  int64_t views = 0, named = 0;
+  double median_px = 0, p95_px = 0;  // named views vs (wcx, wcy)
+  double Recall() const { return views ? static_cast<double>(named) / views : 0; }
+};
+
 struct TrackScore {
   int64_t rows = 0;
   int64_t full = 0, full_named = 0;
@@ -35,6 +53,11 @@ struct TrackScore {
   int64_t wrong = 0, wrong_other = 0, wrong_off = 0;
   double median_px = 0, p95_px = 0, max_px = 0;  // full dots vs (cx, cy)
   std::map<int, std::vector<double>> full_errors_by_frame;  // px, per frame
+  // Whole dots (files with the `whole` column): per cosine bin, and those
+  // at cosine >= 0.15 together (the issue's target).
+  bool has_whole = false;
+  WholeDotBin whole_bins[kNumCosBins];
+  WholeDotBin whole_from_015;
   double FullRecall() const { return full ? static_cast<double>(full_named) / full : 0; }
   double PartialRecall() const { return partial ? static_cast<double>(partial_named) / partial : 0; }
   double PartialHalfRecall() const {
@@ -43,6 +66,7 @@ struct TrackScore {
   double HiddenFraction() const { return hidden ? static_cast<double>(hidden_rows) / hidden : 0; }
   double WrongFraction() const { return rows ? static_cast<double>(wrong) / rows : 0; }
   std::string BriefReport() const;
+  std::string WholeReport() const;  // the cosine bins; empty without them
 };
 
 TrackScore ScoreTracks(const std::vector<Track2d>& tracks, const std::vector<Dot2dTruth>& truth,

@@ -142,5 +142,62 @@ TEST(ScoreTracks, WithoutSeenColumnNoPartialIsCountedAsHalfSeen) {
   EXPECT_EQ(s.wrong, 0);
 }
 
+// Whole dots at random view cosines, named or not, with a known offset
+// from their rim centroid: every bin's counts and quantiles as constructed,
+// and a dot that is not whole (or a file without the column) in none.
+TEST(ScoreTracks, BinsWholeDotsByViewCosine) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> cos_of(0.0, 1.0), offset(0.0, 0.5);
+  std::vector<Dot2dTruth> truth;
+  std::vector<Track2d> rows;
+  int64_t views[kNumCosBins] = {}, named[kNumCosBins] = {}, from_015 = 0, named_015 = 0;
+  std::vector<double> errors[kNumCosBins];
+  for (int i = 0; i < 400; ++i) {
+    const std::string name = "m" + std::to_string(i);
+    const Vec2 p(20.0 * (i % 20), 20.0 * (i / 20));
+    const double c = cos_of(rng);
+    Dot2dTruth d = Dot(1, name, p, c >= 0.5 ? DotDiscState::kFull : DotDiscState::kPartial, c);
+    d.has_cos = true;
+    d.view_cos = c;
+    d.whole = i % 7 == 0 ? 0 : 1;
+    d.has_whole_centroid = d.whole == 1;
+    d.whole_centroid = p + Vec2(0, 0.3);
+    truth.push_back(d);
+    const bool is_named = i % 3 != 0;
+    const double e = offset(rng);
+    if (is_named) rows.push_back(Row(1, name, d.whole_centroid + Vec2(e, 0)));
+    if (d.whole != 1) continue;
+    const int bin = c < 0.15 ? 0 : c < 0.3 ? 1 : c < 0.4 ? 2 : 3;
+    ++views[bin];
+    from_015 += c >= 0.15;
+    if (is_named) {
+      ++named[bin];
+      named_015 += c >= 0.15;
+      errors[bin].push_back(e);
+    }
+  }
+  const TrackScore s = ScoreTracks(rows, truth);
+  ASSERT_TRUE(s.has_whole);
+  int64_t total = 0;
+  for (int b = 0; b < kNumCosBins; ++b) {
+    EXPECT_EQ(s.whole_bins[b].views, views[b]) << CosBinName(b);
+    EXPECT_EQ(s.whole_bins[b].named, named[b]) << CosBinName(b);
+    total += views[b];
+    ASSERT_FALSE(errors[b].empty());
+    std::sort(errors[b].begin(), errors[b].end());
+    EXPECT_GE(s.whole_bins[b].median_px, errors[b].front());
+    EXPECT_LE(s.whole_bins[b].p95_px, errors[b].back() + 1e-12);
+    EXPECT_LE(s.whole_bins[b].median_px, s.whole_bins[b].p95_px);
+  }
+  EXPECT_EQ(total, 400 - 58);  // every 7th is not whole
+  EXPECT_EQ(s.whole_from_015.views, from_015);
+  EXPECT_EQ(s.whole_from_015.named, named_015);
+  EXPECT_EQ(s.wrong, 0);  // every row within 0.5 px of its rim centroid
+  EXPECT_EQ(CosBinName(0), "0-0.15");
+  EXPECT_EQ(CosBinName(3), ">=0.4");
+  for (Dot2dTruth& d : truth) d.whole = -1;
+  EXPECT_FALSE(ScoreTracks(rows, truth).has_whole);
+}
+
 }  // namespace
 }  // namespace hmc
