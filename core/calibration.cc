@@ -141,6 +141,16 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
     HelmetCamera c;
     c.name = Text(Required(node, where, "name", path), where + ".name", path);
     if (c.name.empty()) ThrowInputError(path, node.Mark().line + 1, "'{}.name' is empty", where);
+    // The lens model is named, never guessed: a file written for another
+    // model (a radial-tangential D of 4 numbers reads as 4 Kannala-Brandt
+    // coefficients) would otherwise run silently wrong.
+    const std::string model = Text(Required(node, where, "model", path), where + ".model", path);
+    if (model != "kannala_brandt") {
+      ThrowInputError(path, node["model"].Mark().line + 1,
+                      "camera '{}' ('{}.model'): lens model '{}' is not supported (supported: "
+                      "kannala_brandt)",
+                      c.name, where, model);
+    }
     const cv::Mat K = ReadMatrix(Required(node, where, "K", path), where + ".K", path);
     const cv::Mat D = ReadMatrix(Required(node, where, "D", path), where + ".D", path);
     const cv::Mat cam_from_helmet =
