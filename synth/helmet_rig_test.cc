@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "synth/lens_test_rigs.h"
 #include "synth/synth_random.h"
 
 namespace hmc {
@@ -111,23 +112,10 @@ TEST(HelmetRigTest, TagsFaceBothCamerasAndAreInView) {
 // its parameters reach calibration.yaml, and the tags stay in view of both
 // cameras through a narrow pinhole lens and a double-sphere fisheye.
 TEST(HelmetRigTest, EveryLensModelReachesTheCalibration) {
-  HelmetRigOptions narrow;
-  narrow.model = "pinhole_radtan";
-  narrow.focal_px = 710;
-  narrow.k1 = -0.12;
-  narrow.k2 = 0.02;
-  narrow.k3 = 0.001;
-  narrow.p1 = 0.0004;
-  narrow.p2 = -0.0003;
-  narrow.camera_distance = 180;
-  HelmetRigOptions ds;
-  ds.model = "double_sphere";
-  ds.focal_px = 350;
-  ds.xi = -0.15;
-  ds.alpha = 0.58;
   const auto dir = std::filesystem::temp_directory_path() / "hmc_helmet_rig_model_test";
   EnsureDirectory(dir);
-  for (const HelmetRigOptions& options : {narrow, ds}) {
+  const std::vector<HelmetRigOptions> lenses = OtherLensRigOptions();
+  for (const HelmetRigOptions& options : lenses) {
     ASSERT_TRUE(options.Check()) << options.model;
     const HelmetRig rig = MakeHelmetRig(options, 110.0, 95.0);
     WriteCalibration(dir / "calibration.yaml", rig);
@@ -145,7 +133,7 @@ TEST(HelmetRigTest, EveryLensModelReachesTheCalibration) {
       }
     }
   }
-  const Camera pinhole = MakeCamera(narrow);
+  const Camera pinhole = MakeCamera(lenses[0]);
   EXPECT_EQ(pinhole.k[RadTan::kRadTanP1], 0.0004);
   EXPECT_EQ(pinhole.k[RadTan::kRadTanK3], 0.001);
   HelmetRigOptions unknown;

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/temp_dir.h"
 #include "synth/helmet_rig.h"
+#include "synth/lens_test_rigs.h"
 
 namespace hmc {
 namespace {
@@ -64,20 +65,7 @@ TEST(TriangulateTest, ExactProjectionsGiveTheTruth) {
 // lens and a double-sphere fisheye (unprojection and the Jet Jacobians of
 // the refinement go through the camera's model).
 TEST(TriangulateTest, ExactProjectionsGiveTheTruthThroughEveryLensModel) {
-  HelmetRigOptions narrow;
-  narrow.model = "pinhole_radtan";
-  narrow.focal_px = 710;
-  narrow.k1 = -0.12;
-  narrow.k2 = 0.02;
-  narrow.k3 = 0.001;
-  narrow.p1 = 0.0004;
-  narrow.p2 = -0.0003;
-  HelmetRigOptions ds;
-  ds.model = "double_sphere";
-  ds.focal_px = 350;
-  ds.xi = -0.15;
-  ds.alpha = 0.58;
-  for (const HelmetRigOptions& options : {narrow, ds}) {
+  for (const HelmetRigOptions& options : OtherLensRigOptions()) {
     const Scene s = MakeScene(4, 5, 60, options);
     const TriangulateOutput out = RunTriangulate({&s.rig, &s.tracks, "tracks"}, {});
     const TriangulationAccuracy a = EvaluateTriangulation(out.bundles, s.truth, {}, 2);
