@@ -1,6 +1,6 @@
 // `hmc undistort --shot SHOT --calibration CAL --out DIR [--camera cam0|cam1|both]
 //   [--fov-deg F] [--tracks tracks_2d.csv] [--video]`: the fisheye frames
-// remapped exactly (Kannala-Brandt, core/camera_fisheye.h) to pinhole views,
+// remapped exactly (the camera's lens model, core/camera.h) to pinhole views,
 // as PNG frames or an FFV1 video per camera; with --tracks the named dots
 // are drawn (tracking/undistort.h; files: docs/formats.md).
 #include <memory>

@@ -59,14 +59,14 @@ Rigid3 RigidFromCv(const cv::Mat& m, const std::filesystem::path& path,
 void WriteCalibration(const std::filesystem::path& path, const HelmetRig& rig) {
   cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
   fs.writeComment(
-      "hmc helmet rig: Kannala-Brandt fisheye cameras (OpenCV cv::fisheye K, "
-      "D), cam_from_helmet 4x4 (mm), helmet tags (docs/formats.md)");
+      "hmc helmet rig: cameras (model kannala_brandt | pinhole_radtan | double_sphere, "
+      "OpenCV K, D), cam_from_helmet 4x4 (mm), helmet tags (docs/formats.md)");
   fs << "units" << "mm";
   fs << "cameras" << "[";
   for (const HelmetCamera& c : rig.cameras) {
-    fs << "{" << "name" << c.name << "model" << "kannala_brandt"
+    fs << "{" << "name" << c.name << "model" << CameraModelName(c.camera.model)
        << "image_width" << c.camera.width << "image_height" << c.camera.height
-       << "K" << cv::Mat(c.camera.K()) << "D" << cv::Mat(c.camera.D())
+       << "K" << cv::Mat(c.camera.K()) << "D" << c.camera.D()
        << "cam_from_helmet" << ToCv(c.cam_from_helmet) << "}";
   }
   fs << "]";
@@ -148,6 +148,18 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
                         where, c.name, other);
       }
     }
+    // The lens model is named, never guessed: a file written for another
+    // model (a radial-tangential D of 4 numbers reads as 4 Kannala-Brandt
+    // coefficients) would otherwise run silently wrong.
+    const std::string model_name =
+        Text(Required(node, where, "model", path), where + ".model", path);
+    CameraModel model;
+    if (!ParseCameraModel(model_name, &model)) {
+      ThrowInputError(path, node["model"].Mark().line + 1,
+                      "camera '{}' ('{}.model'): lens model '{}' is not supported (supported: "
+                      "{})",
+                      c.name, where, model_name, CameraModelNames());
+    }
     const cv::Mat K = ReadMatrix(Required(node, where, "K", path), where + ".K", path);
     const cv::Mat D = ReadMatrix(Required(node, where, "D", path), where + ".D", path);
     const cv::Mat cam_from_helmet =
@@ -157,9 +169,10 @@ HelmetRig ReadCalibration(const std::filesystem::path& path) {
     const int h = Integer(Required(node, where, "image_height", path), where + ".image_height", 1,
                           kMaxImageSide, path);
     try {
-      c.camera = FisheyeCamera::FromOpenCv(K, D, cv::Size(w, h));
+      c.camera = Camera::FromOpenCv(K, D, cv::Size(w, h), model);
     } catch (const InputError& e) {
-      ThrowInputError(path, node.Mark().line + 1, "'{}.K' / '{}.D': {}", where, where, e.what());
+      ThrowInputError(path, node.Mark().line + 1, "camera '{}' ('{}.K' / '{}.D', model {}): {}",
+                      c.name, where, where, model_name, e.what());
     }
     if (!(c.camera.fx > 0 && c.camera.fy > 0) || !std::isfinite(c.camera.cx) ||
         !std::isfinite(c.camera.cy)) {

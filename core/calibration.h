@@ -1,5 +1,5 @@
-// The calibration of a stereo helmet-mounted camera rig: Kannala-Brandt
-// fisheye cameras with their poses in helmet space, and the AprilTags fixed
+// The calibration of a stereo helmet-mounted camera rig: cameras (a lens
+// model and its parameters, core/camera.h) with their poses in helmet space, and the AprilTags fixed
 // on the helmet (calibration.yaml, docs/formats.md). Every stage that looks
 // at pixels reads it from here: undistortion, tracking, tag calibration,
 // triangulation (the synthetic rig of `hmc synth shot` writes the same file).
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "core/camera_fisheye.h"
+#include "core/camera.h"
 #include "core/types.h"
 
 namespace hmc {
@@ -35,7 +35,7 @@ struct HelmetTag {
 
 struct HelmetCamera {
   std::string name;        // "cam0" (upper), "cam1" (lower)
-  FisheyeCamera camera;
+  Camera camera;
   Rigid3 cam_from_helmet;
 };
 

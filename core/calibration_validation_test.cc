@@ -135,5 +135,19 @@ TEST(CalibrationValidationTest, DuplicateCameraNamesAreRefused) {
                 "'cameras[1].name' cam0 is also cameras[0]'s name");
 }
 
+// Issue 44, item 5: the lens model is read, not assumed. A model hmc does
+// not support, or none, is refused naming the file, the camera and the model.
+TEST(CalibrationValidationTest, UnsupportedOrMissingLensModelIsRefused) {
+  TempDir dir;
+  const std::string valid = ValidCalibration(dir.path());
+  ASSERT_NE(valid.find("model: kannala_brandt"), std::string::npos) << valid;
+  const std::string unsupported = Replace(valid, "model: kannala_brandt", "model: unified_omni", 1);
+  ExpectRefused(dir.path(), unsupported, "cam1");
+  ExpectRefused(dir.path(), unsupported, "unified_omni");
+  ExpectRefused(dir.path(), unsupported, "cameras[1].model");
+  ExpectRefused(dir.path(), Replace(valid, "model: kannala_brandt", "modle: kannala_brandt"),
+                "cameras[0].model");
+}
+
 }  // namespace
 }  // namespace hmc

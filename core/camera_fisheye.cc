@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 
-#include "core/error.h"
 
 namespace hmc {
 namespace {
@@ -27,8 +26,7 @@ double Distort(const double* k, double theta) {
 // every negative term at its largest magnitude the slope stays positive.
 // Holds for most real lenses over most of their field, so the adaptive
 // search below is rarely needed.
-bool CertainlyMonotonic(const double* k, double theta) {
-  const double u_max = theta * theta;
+bool CertainlyMonotonicSquared(const double* k, double u_max) {
   const double c[4] = {3.0 * k[0], 5.0 * k[1], 7.0 * k[2], 9.0 * k[3]};
   double lower = 1.0;
   double power = 1.0;
@@ -37,6 +35,10 @@ bool CertainlyMonotonic(const double* k, double theta) {
     lower += std::min(0.0, ci) * power;
   }
   return lower > 0.0;
+}
+
+bool CertainlyMonotonic(const double* k, double theta) {
+  return CertainlyMonotonicSquared(k, theta * theta);
 }
 
 constexpr double kNoZero = std::numeric_limits<double>::infinity();
@@ -80,10 +82,19 @@ bool IsMonotonicUpTo(const double* k, double theta_rad) {
   return FirstSlopeZero(k, 0.0, theta_rad * theta_rad, 1.0, 0) == kNoZero;
 }
 
+double FirstSlopeZeroBelow(const double* k, double u_max) {
+  if (!(u_max >= 0.0)) return 0.0;
+  if (CertainlyMonotonicSquared(k, u_max)) return kNoZero;
+  return FirstSlopeZero(k, 0.0, u_max, 1.0, 0);
+}
+
+bool IsSlopePositiveUpTo(const double* k, double u_max) {
+  return FirstSlopeZeroBelow(k, u_max) == kNoZero;
+}
+
 }  // namespace fisheye_internal
 
-bool FisheyeCamera::Unproject(const double* intrinsics, const double* pixel,
-                              double* bearing) {
+bool KannalaBrandt::Unproject(const double* intrinsics, const double* pixel, double* bearing) {
   const double* k = intrinsics + kK1;
   const double mx = (pixel[0] - intrinsics[kCx]) / intrinsics[kFx];
   const double my = (pixel[1] - intrinsics[kCy]) / intrinsics[kFy];
@@ -152,75 +163,6 @@ bool FisheyeCamera::Unproject(const double* intrinsics, const double* pixel,
   return true;
 }
 
-bool FisheyeCamera::Project(const Vec3& point_in_cam, Vec2* pixel) const {
-  const auto params = Params();
-  return Project(params.data(), point_in_cam.data(), pixel->data());
-}
-
-bool FisheyeCamera::Unproject(const Vec2& pixel, Vec3* bearing) const {
-  const auto params = Params();
-  return Unproject(params.data(), pixel.data(), bearing->data());
-}
-
-bool FisheyeCamera::IsInImage(const Vec2& pixel) const {
-  return pixel.x() >= -0.5 && pixel.x() < width - 0.5 && pixel.y() >= -0.5 &&
-         pixel.y() < height - 0.5;
-}
-
-double FisheyeCamera::MaxTheta() const { return MonotonicLimit(k.data()); }
-
-std::array<double, kNumFisheyeParams> FisheyeCamera::Params() const {
-  return {fx, fy, cx, cy, k[0], k[1], k[2], k[3]};
-}
-
-void FisheyeCamera::SetParams(const double* intrinsics) {
-  fx = intrinsics[kFx];
-  fy = intrinsics[kFy];
-  cx = intrinsics[kCx];
-  cy = intrinsics[kCy];
-  for (int i = 0; i < 4; ++i) k[i] = intrinsics[kK1 + i];
-}
-
-cv::Matx33d FisheyeCamera::K() const {
-  return cv::Matx33d(fx, 0, cx, 0, fy, cy, 0, 0, 1);
-}
-
-cv::Vec4d FisheyeCamera::D() const { return cv::Vec4d(k[0], k[1], k[2], k[3]); }
-
-FisheyeCamera FisheyeCamera::FromOpenCv(const cv::Mat& K, const cv::Mat& D,
-                                        cv::Size size) {
-  if (K.rows != 3 || K.cols != 3 || K.channels() != 1) {
-    throw InputError(fmt::format("fisheye K must be 3 x 3, got {} x {}",
-                                 K.rows, K.cols));
-  }
-  if (D.total() != 4 || D.channels() != 1 || (D.rows != 1 && D.cols != 1)) {
-    throw InputError(fmt::format(
-        "fisheye D must hold 4 coefficients (k1..k4), got {} x {}", D.rows,
-        D.cols));
-  }
-  cv::Mat k64;
-  cv::Mat d64;
-  K.convertTo(k64, CV_64F);
-  D.reshape(1, 4).convertTo(d64, CV_64F);
-  const auto at = [&](int r, int c) { return k64.at<double>(r, c); };
-  if (at(0, 1) != 0.0 || at(1, 0) != 0.0 || at(2, 0) != 0.0 ||
-      at(2, 1) != 0.0 || at(2, 2) != 1.0) {
-    throw InputError(
-        "fisheye K must be [fx 0 cx; 0 fy cy; 0 0 1] (no skew)");
-  }
-  FisheyeCamera camera;
-  camera.width = size.width;
-  camera.height = size.height;
-  camera.fx = at(0, 0);
-  camera.fy = at(1, 1);
-  camera.cx = at(0, 2);
-  camera.cy = at(1, 2);
-  for (int i = 0; i < 4; ++i) camera.k[i] = d64.at<double>(i, 0);
-  if (!(camera.fx > 0 && camera.fy > 0)) {
-    throw InputError(fmt::format("fisheye K has non-positive focal length "
-                                 "(fx {}, fy {})", camera.fx, camera.fy));
-  }
-  return camera;
-}
+double KannalaBrandt::MaxTheta(const double* k) { return MonotonicLimit(k); }
 
 }  // namespace hmc

@@ -15,16 +15,12 @@
 // rays beyond ~90 degrees off axis.
 #pragma once
 
-#include <array>
 #include <cmath>
-
-#include <opencv2/core.hpp>
-
-#include "core/types.h"
 
 namespace hmc {
 
-// Layout of the intrinsics array for the templated functions.
+// Layout of the intrinsics array for the templated functions (every model
+// shares fx..cy; its distortion parameters follow from kK1: core/camera.h).
 enum FisheyeParam { kFx = 0, kFy, kCx, kCy, kK1, kK2, kK3, kK4, kNumFisheyeParams };
 
 namespace fisheye_internal {
@@ -44,21 +40,25 @@ double ScalarPart(const T& jet) {
 // k: k1..k4.
 bool IsMonotonicUpTo(const double* k, double theta_rad);
 
+// The same for a polynomial in u = r^2 with no cap on the range: true if
+// 1 + 3 k1 u + 5 k2 u^2 + 7 k3 u^3 + 9 k4 u^4 > 0 on [0, u_max]. The radial
+// part of the pinhole radial-tangential model (core/camera_radtan.h) has
+// this slope with k4 = 0.
+bool IsSlopePositiveUpTo(const double* k, double u_max);
+
+// The first zero of that slope in [0, u_max], or +infinity.
+double FirstSlopeZeroBelow(const double* k, double u_max);
+
 }  // namespace fisheye_internal
 
-struct FisheyeCamera {
-  int width = 0;   // image size (px)
-  int height = 0;
-  double fx = 0;   // focal lengths (px per radian of theta_d)
-  double fy = 0;
-  double cx = 0;   // principal point (px)
-  double cy = 0;
-  std::array<double, 4> k = {0, 0, 0, 0};  // k1..k4
-
+// The Kannala-Brandt model's maths on a parameter array (FisheyeParam
+// order); the camera that holds a model and its parameters is Camera
+// (core/camera.h), which dispatches here.
+struct KannalaBrandt {
   // Projects `point_in_cam` (3, camera frame: +z along the optical axis, +x
   // right, +y down) to `pixel` (2). Returns false (pixel untouched) if the
   // point is at the centre, straight behind, or beyond the monotonic range
-  // of the polynomial. Not limited to the image: see IsInImage.
+  // of the polynomial. Not limited to the image: see Camera::IsInImage.
   // `intrinsics`: kNumFisheyeParams values in FisheyeParam order. T may be a
   // ceres::Jet: derivatives are exact, also on the optical axis.
   template <typename T>
@@ -70,35 +70,15 @@ struct FisheyeCamera {
   // kept inside a bracket of the monotonic range. Returns false when
   // theta_d* lies outside that range (no unique angle) or the iteration does
   // not converge.
-  static bool Unproject(const double* intrinsics, const double* pixel,
-                        double* bearing);
-
-  bool Project(const Vec3& point_in_cam, Vec2* pixel) const;
-  bool Unproject(const Vec2& pixel, Vec3* bearing) const;
-
-  // Inside the image: pixel centres at integers, so [-0.5, width - 0.5).
-  bool IsInImage(const Vec2& pixel) const;
+  static bool Unproject(const double* intrinsics, const double* pixel, double* bearing);
 
   // The largest angle off axis (rad) up to which the model is one-to-one:
-  // the first zero of d theta_d / d theta, or pi.
-  double MaxTheta() const;
-
-  // Intrinsics in FisheyeParam order.
-  std::array<double, kNumFisheyeParams> Params() const;
-  void SetParams(const double* intrinsics);
-
-  // OpenCV's cv::fisheye K (3 x 3 camera matrix) and D (k1..k4).
-  cv::Matx33d K() const;
-  cv::Vec4d D() const;
-  // From OpenCV's K (3 x 3, no skew) and D (4 x 1 or 1 x 4, any float type).
-  // Throws InputError if the shapes are wrong or K has skew.
-  static FisheyeCamera FromOpenCv(const cv::Mat& K, const cv::Mat& D,
-                                  cv::Size size);
+  // the first zero of d theta_d / d theta, or pi. k: k1..k4.
+  static double MaxTheta(const double* k);
 };
 
 template <typename T>
-bool FisheyeCamera::Project(const T* intrinsics, const T* point_in_cam,
-                            T* pixel) {
+bool KannalaBrandt::Project(const T* intrinsics, const T* point_in_cam, T* pixel) {
   using std::atan2;
   using std::sqrt;
   const T& x = point_in_cam[0];

@@ -1,4 +1,4 @@
-#include "core/camera_fisheye.h"
+#include "core/camera.h"
 
 #include <cmath>
 #include <random>
@@ -127,7 +127,7 @@ TEST_P(FisheyeSeeded, JetJacobianMatchesFiniteDifferences) {
     Jet jets[kN];
     for (int j = 0; j < kN; ++j) jets[j] = Jet(x[j], j);
     Jet pixel[2];
-    ASSERT_TRUE(FisheyeCamera::Project(jets, jets + kNumFisheyeParams, pixel));
+    ASSERT_TRUE(KannalaBrandt::Project(jets, jets + kNumFisheyeParams, pixel));
 
     for (int j = 0; j < kN; ++j) {
       const double h = 1e-6 * std::max(1.0, std::abs(x[j]));
@@ -139,9 +139,9 @@ TEST_P(FisheyeSeeded, JetJacobianMatchesFiniteDifferences) {
       minus[j] -= h;
       double p_plus[2];
       double p_minus[2];
-      ASSERT_TRUE(FisheyeCamera::Project(plus, plus + kNumFisheyeParams,
+      ASSERT_TRUE(KannalaBrandt::Project(plus, plus + kNumFisheyeParams,
                                          p_plus));
-      ASSERT_TRUE(FisheyeCamera::Project(minus, minus + kNumFisheyeParams,
+      ASSERT_TRUE(KannalaBrandt::Project(minus, minus + kNumFisheyeParams,
                                          p_minus));
       for (int c = 0; c < 2; ++c) {
         const double numeric = (p_plus[c] - p_minus[c]) / (2 * h);

@@ -21,6 +21,34 @@ using yaml_values::Text;
 constexpr double kMmPerMetre = 1000;
 using yaml_values::kMaxImageSide;
 
+// Kalibr's names of the lens models hmc has (core/camera.h).
+struct KalibrModel {
+  CameraModel model;
+  const char* camera_model;
+  const char* distortion_model;
+};
+constexpr KalibrModel kKalibrModels[] = {
+    {CameraModel::kKannalaBrandt, "pinhole", "equidistant"},
+    {CameraModel::kPinholeRadTan, "pinhole", "radtan"},
+    {CameraModel::kDoubleSphere, "ds", "none"},
+};
+
+const KalibrModel* FindKalibrModel(const std::string& camera_model,
+                                   const std::string& distortion_model) {
+  for (const KalibrModel& m : kKalibrModels) {
+    if (camera_model == m.camera_model && distortion_model == m.distortion_model) return &m;
+  }
+  return nullptr;
+}
+
+const KalibrModel& KalibrModelOf(CameraModel model) {
+  for (const KalibrModel& m : kKalibrModels) {
+    if (m.model == model) return m;
+  }
+  AbortOnInvariant("a Kalibr name for every lens model", __FILE__, __LINE__,
+                   CameraModelName(model));
+}
+
 }  // namespace
 
 std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path) {
@@ -36,23 +64,30 @@ std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path) 
     KalibrCamera k;
     k.name = name;
     const std::string model = Text(Required(cam, name, "camera_model", path), name + ".camera_model", path);
-    if (model != "pinhole") {
+    if (model != "pinhole" && model != "ds") {
       ThrowInputError(path, cam["camera_model"].Mark().line + 1,
-                      "'{}.camera_model' is '{}': only pinhole (with the equidistant "
-                      "distortion) is the project's fisheye camera",
-                      name, model);
+                      "camera '{}': '{}.camera_model' is '{}', not supported (supported: "
+                      "pinhole-equi, pinhole-radtan, ds-none)",
+                      name, name, model);
     }
     const std::string distortion =
         Text(Required(cam, name, "distortion_model", path), name + ".distortion_model", path);
-    if (distortion != "equidistant") {
+    const KalibrModel* kalibr = FindKalibrModel(model, distortion);
+    if (!kalibr) {
       ThrowInputError(path, cam["distortion_model"].Mark().line + 1,
-                      "'{}.distortion_model' is '{}': only equidistant (Kannala-Brandt) is "
-                      "supported",
-                      name, distortion);
+                      "camera '{}': '{}.distortion_model' is '{}': Kalibr model '{}-{}' is not "
+                      "supported (supported: pinhole-equi, pinhole-radtan, ds-none)",
+                      name, name, distortion, model, distortion);
     }
-    const auto intr = Numbers(Required(cam, name, "intrinsics", path), 4, name + ".intrinsics", path);
-    const auto dist =
-        Numbers(Required(cam, name, "distortion_coeffs", path), 4, name + ".distortion_coeffs", path);
+    k.camera.model = kalibr->model;
+    // Kalibr's ds puts xi, alpha before the focal lengths.
+    const size_t lead = kalibr->model == CameraModel::kDoubleSphere ? 2 : 0;
+    const size_t coeffs = kalibr->model == CameraModel::kDoubleSphere ? 0 : 4;
+    const auto all_intr =
+        Numbers(Required(cam, name, "intrinsics", path), 4 + lead, name + ".intrinsics", path);
+    const std::vector<double> intr(all_intr.begin() + lead, all_intr.end());
+    const auto dist = Numbers(Required(cam, name, "distortion_coeffs", path), coeffs,
+                              name + ".distortion_coeffs", path);
     const auto res = Numbers(Required(cam, name, "resolution", path), 2, name + ".resolution", path);
     if (!(intr[0] > 0 && intr[1] > 0)) {
       ThrowInputError(path, cam["intrinsics"].Mark().line + 1,
@@ -70,7 +105,13 @@ std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path) 
     k.camera.fy = intr[1];
     k.camera.cx = intr[2];
     k.camera.cy = intr[3];
-    for (int i = 0; i < 4; ++i) k.camera.k[i] = dist[i];
+    for (size_t i = 0; i < lead; ++i) k.camera.k[i] = all_intr[i];
+    for (size_t i = 0; i < dist.size(); ++i) k.camera.k[i] = dist[i];
+    try {
+      k.camera.CheckModelParams();
+    } catch (const InputError& e) {
+      ThrowInputError(path, cam["intrinsics"].Mark().line + 1, "camera '{}': {}", name, e.what());
+    }
     if (const YAML::Node t = cam["T_cn_cnm1"]) {
       const std::string key = name + ".T_cn_cnm1";
       if (!t.IsSequence() || t.size() != 4) {
@@ -109,14 +150,27 @@ void WriteKalibrCamchain(const std::filesystem::path& path, const HelmetRig& rig
   out << YAML::BeginMap;
   for (size_t n = 0; n < rig.cameras.size(); ++n) {
     const HelmetCamera& hc = rig.cameras[n];
-    const FisheyeCamera& c = hc.camera;
+    const Camera& c = hc.camera;
+    const KalibrModel& kalibr = KalibrModelOf(c.model);
+    if (c.model == CameraModel::kPinholeRadTan && c.k[RadTan::kRadTanK3] != 0) {
+      ThrowInputError(path, 0,
+                      "camera '{}': Kalibr's radtan has 4 coefficients (k1, k2, p1, p2) and this "
+                      "lens has k3 = {}",
+                      hc.name, c.k[RadTan::kRadTanK3]);
+    }
     out << YAML::Key << fmt::format("cam{}", n) << YAML::Value << YAML::BeginMap;
-    out << YAML::Key << "camera_model" << YAML::Value << "pinhole";
-    out << YAML::Key << "distortion_model" << YAML::Value << "equidistant";
-    out << YAML::Key << "intrinsics" << YAML::Value << YAML::Flow << YAML::BeginSeq
-        << c.fx << c.fy << c.cx << c.cy << YAML::EndSeq;
-    out << YAML::Key << "distortion_coeffs" << YAML::Value << YAML::Flow << YAML::BeginSeq
-        << c.k[0] << c.k[1] << c.k[2] << c.k[3] << YAML::EndSeq;
+    out << YAML::Key << "camera_model" << YAML::Value << kalibr.camera_model;
+    out << YAML::Key << "distortion_model" << YAML::Value << kalibr.distortion_model;
+    out << YAML::Key << "intrinsics" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    if (c.model == CameraModel::kDoubleSphere) {
+      out << c.k[DoubleSphere::kXi] << c.k[DoubleSphere::kAlpha];
+    }
+    out << c.fx << c.fy << c.cx << c.cy << YAML::EndSeq;
+    out << YAML::Key << "distortion_coeffs" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    if (c.model != CameraModel::kDoubleSphere) {
+      for (int i = 0; i < 4; ++i) out << c.k[i];
+    }
+    out << YAML::EndSeq;
     out << YAML::Key << "resolution" << YAML::Value << YAML::Flow << YAML::BeginSeq << c.width
         << c.height << YAML::EndSeq;
     out << YAML::Key << "rostopic" << YAML::Value << "/" + hc.name + "/image_raw";

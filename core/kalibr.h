@@ -12,9 +12,16 @@
 //     ...
 //     T_cn_cnm1: 4 x 4 list of rows      # cam1_from_cam0, metres (Kalibr's unit)
 //
-// Only the `pinhole` + `equidistant` combination is the project's camera
-// (core/camera_fisheye.h); other models are refused. Pixel centres: Kalibr
-// follows OpenCV (centre of the top-left pixel at (0, 0)), as hmc does.
+// The lens models hmc has (core/camera.h), in Kalibr's names:
+//   pinhole-equi    camera_model pinhole, distortion_model equidistant
+//                   (kannala_brandt; coefficients k1..k4)
+//   pinhole-radtan  camera_model pinhole, distortion_model radtan
+//                   (pinhole_radtan; coefficients k1, k2, p1, p2; no k3)
+//   ds-none         camera_model ds, distortion_model none, intrinsics
+//                   [xi, alpha, fu, fv, pu, pv], distortion_coeffs []
+//                   (double_sphere)
+// Other models are refused. Pixel centres: Kalibr follows OpenCV (centre of
+// the top-left pixel at (0, 0)), as hmc does.
 #pragma once
 
 #include <filesystem>
@@ -27,7 +34,7 @@ namespace hmc {
 
 struct KalibrCamera {
   std::string name;          // cam0, cam1, ... (the file's keys, in order)
-  FisheyeCamera camera;
+  Camera camera;
   bool has_cam_from_previous = false;
   Rigid3 cam_from_previous = Rigid3::Identity();  // T_cn_cnm1 (mm here)
 };
@@ -38,7 +45,8 @@ struct KalibrCamera {
 std::vector<KalibrCamera> ReadKalibrCamchain(const std::filesystem::path& path);
 
 // Writes the cameras of `rig` (in order, cam_from_previous from their
-// cam_from_helmet) atomically.
+// cam_from_helmet) atomically. Throws InputError (naming the camera) for a
+// pinhole_radtan lens with k3 != 0, which Kalibr's radtan cannot hold.
 void WriteKalibrCamchain(const std::filesystem::path& path, const HelmetRig& rig);
 
 // `rig` with the intrinsics of the chain (by order; the counts must match)

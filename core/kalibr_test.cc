@@ -126,7 +126,9 @@ TEST(KalibrTest, BadCamchainsAreRefusedNamingTheKey) {
                     "  T_cn_cnm1: [[1, 0.1, 0, 0], [0, 1, 0, 0.06], [0, 0, 1, 0], [0, 0, 0, 1]]\n",
                 "cam1.T_cn_cnm1");
   ExpectRefused("cam0:\n  camera_model: omni\n", "cam0.camera_model");
-  ExpectRefused("cam0:\n  camera_model: pinhole\n  distortion_model: radtan\n",
+  ExpectRefused("cam0:\n  camera_model: pinhole\n  distortion_model: fov\n",
+                "cam0.distortion_model");
+  ExpectRefused("cam0:\n  camera_model: ds\n  distortion_model: radtan\n",
                 "cam0.distortion_model");
   ExpectRefused("cam0:\n  camera_model: pinhole\n  distortion_model: equidistant\n"
                 "  intrinsics: [700, 700, 640]\n",

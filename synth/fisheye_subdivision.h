@@ -1,6 +1,6 @@
 // Screen-space subdivision of a mesh seen through a fisheye lens, for the
 // footage renderer (synth/footage.h, docs/footage.md): a straight triangle
-// edge images as a curve under the Kannala-Brandt model, so each projected
+// edge images as a curve under the lens model (core/camera.h), so each projected
 // triangle is split until every edge's chord is within a tolerance of the
 // projected edge (midpoint sagitta). The split decision depends on the edge
 // alone, so neighbours split shared edges alike and no T-junction cracks
@@ -11,20 +11,23 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/camera_fisheye.h"
+#include "core/camera.h"
 #include "core/mesh.h"
 
 namespace hmc {
 
-// The Kannala-Brandt projection of FisheyeCamera::Project, inlined for the
+// The Kannala-Brandt projection of Camera::Project, inlined for the
 // renderer's hot loops; `max_theta` (the camera's MaxTheta) replaces the
-// per-point monotonicity check.
+// per-point monotonicity check. Other lens models go through
+// Camera::Project itself.
 struct FastFisheye {
   double fx, fy, cx, cy, k1, k2, k3, k4, max_theta, width, height;
-  explicit FastFisheye(const FisheyeCamera& c)
+  Camera camera;
+  explicit FastFisheye(const Camera& c)
       : fx(c.fx), fy(c.fy), cx(c.cx), cy(c.cy), k1(c.k[0]), k2(c.k[1]), k3(c.k[2]),
-        k4(c.k[3]), max_theta(c.MaxTheta()), width(c.width), height(c.height) {}
+        k4(c.k[3]), max_theta(c.MaxTheta()), width(c.width), height(c.height), camera(c) {}
   bool Project(const Vec3& p, Vec2* pixel) const {
+    if (camera.model != CameraModel::kKannalaBrandt) return camera.Project(p, pixel);
     const double r = std::sqrt(p.x() * p.x() + p.y() * p.y());
     double scale;
     if (r <= 1e-8 * p.z()) {

@@ -39,6 +39,8 @@ void FootageRenderOptions::Register(OptionFields* fields) {
   fields->Add("shutter", &shutter, "exposure as a fraction of the frame interval");
   fields->Add("defocus_px", &defocus_px, "Gaussian defocus blur sigma (px; 0 = off)");
   fields->Add("max_edge_error_px", &max_edge_error_px, "fisheye subdivision tolerance (px)");
+  fields->Add("transfer", &transfer,
+              "8-bit encoding: linear | srgb (the sRGB curve, as most cameras write PNG)");
   fields->SetGroup("");
 }
 
@@ -68,6 +70,7 @@ bool FootageRenderOptions::Check() const {
   }
   if (!(shutter > 0 && shutter <= 1)) fail("shutter must be in (0, 1]");
   if (!(defocus_px >= 0 && defocus_px < 20)) fail("defocus_px must be in [0, 20)");
+  if (transfer != "linear" && transfer != "srgb") fail("transfer must be linear or srgb");
   if (!(max_edge_error_px > 0.001 && max_edge_error_px <= 2)) {
     fail("max_edge_error_px must be in (0.001, 2]");
   }
@@ -638,7 +641,8 @@ ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& sa
     cv::GaussianBlur(out.radiance, signal, cv::Size(0, 0), options_.defocus_px);
   }
   out.image = RecordSensorImage(signal, options_.vignetting > 0 ? vignette_[camera] : cv::Mat(),
-                                options_.read_noise, options_.shot_noise, noise_key);
+                                options_.read_noise, options_.shot_noise, noise_key,
+                                options_.transfer == "srgb");
   return out;
 }
 

@@ -59,6 +59,7 @@ struct FootageRenderOptions {
   double shutter = 0.5;             // exposure as a fraction of the frame interval
   double defocus_px = 0;            // Gaussian defocus blur sigma (px; 0 = off)
   double max_edge_error_px = 0.05;  // fisheye subdivision tolerance (px)
+  std::string transfer = "linear";  // 8-bit encoding: linear | srgb (the sRGB curve, as most cameras write PNG)
 
   void Register(OptionFields* fields);
   bool Check() const;

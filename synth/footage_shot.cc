@@ -29,7 +29,8 @@ namespace hmc {
 void SynthShotOptions::Register(OptionFields* fields) {
   performance.Register(fields);
   fields->Add("video", &video,
-              "ffv1 (lossless .mkv per camera) | png (a folder per camera) | none (ground truth "
+              "ffv1 (lossless .mkv per camera) | h264 (lossy .mp4 per camera, as a camera records) | "
+              "png (a folder per camera) | none (ground truth "
               "only: no images, dots_2d.csv or contact sheet)");
   fields->Add("bundle_noise_mm", &bundle_noise_mm,
               "> 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per "
@@ -55,7 +56,7 @@ void SynthShotOptions::Register(OptionFields* fields) {
 
 bool SynthShotOptions::Check() const {
   if (!performance.Check() || !rig.Check() || !render.Check()) return false;
-  CHECK_OPTION(video == "ffv1" || video == "png" || video == "none");
+  CHECK_OPTION(video == "ffv1" || video == "h264" || video == "png" || video == "none");
   CHECK_OPTION_IN(bundle_noise_mm, 0.0, 50.0);
   CHECK_OPTION_IN(contact_frames, 0, 32);
   CHECK_OPTION_GT(contact_scale, 0.05);
@@ -94,8 +95,9 @@ double FaceFrontZ(const TriMesh& neutral, double y) {
   return best;
 }
 
-// Writes one camera's frames: a lossless FFV1 .mkv (written under a
-// temporary name and renamed when complete) or a PNG folder.
+// Writes one camera's frames: a lossless FFV1 .mkv or a lossy H.264 .mp4
+// (FFmpeg's default quality, with its compression artefacts; both written
+// under a temporary name and renamed when complete) or a PNG folder.
 class FrameSink {
  public:
   FrameSink(const std::filesystem::path& out_dir, const std::string& name,
@@ -106,12 +108,16 @@ class FrameSink {
       EnsureDirectory(dir_);
       return;
     }
-    final_ = out_dir / (name + ".mkv");
-    temp_ = out_dir / ("." + name + ".partial.mkv");
-    writer_.open(temp_.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('F', 'F', 'V', '1'),
-                 fps, size, false);
+    const bool h264 = kind == "h264";
+    const std::string ext = h264 ? ".mp4" : ".mkv";
+    final_ = out_dir / (name + ext);
+    temp_ = out_dir / ("." + name + ".partial" + ext);
+    const int fourcc = h264 ? cv::VideoWriter::fourcc('a', 'v', 'c', '1')
+                            : cv::VideoWriter::fourcc('F', 'F', 'V', '1');
+    writer_.open(temp_.string(), cv::CAP_FFMPEG, fourcc, fps, size, false);
     if (!writer_.isOpened()) {
-      ThrowInputError(final_, 0, "cannot open an FFV1 video writer (OpenCV FFmpeg backend)");
+      ThrowInputError(final_, 0, "cannot open an {} video writer (OpenCV FFmpeg backend)",
+                      h264 ? "H.264" : "FFV1");
     }
   }
   void Write(int frame, const cv::Mat& image) {

@@ -18,7 +18,7 @@ namespace hmc {
 
 struct SynthShotOptions {
   PerformanceOptions performance;  // frames, seed, fps, slip, vibration (top level)
-  std::string video = "ffv1";      // ffv1 (lossless .mkv per camera) | png (a folder per camera) | none (ground truth only: no images, dots_2d.csv or contact sheet)
+  std::string video = "ffv1";      // ffv1 (lossless .mkv per camera) | h264 (lossy .mp4 per camera) | png (a folder per camera) | none (ground truth only: no images, dots_2d.csv or contact sheet)
   double bundle_noise_mm = 0;      // > 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per coordinate (mm)
   int contact_frames = 4;          // frames on the contact sheet (0 = none)
   bool contact_dots = true;        // overlay the ground-truth dots on the contact sheet

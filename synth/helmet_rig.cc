@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
@@ -12,11 +13,17 @@ void HelmetRigOptions::Register(OptionFields* fields) {
   fields->SetGroup("rig");
   fields->Add("width", &width, "image width (px)");
   fields->Add("height", &height, "image height (px)");
-  fields->Add("focal_px", &focal_px, "fisheye focal length (px per radian)");
-  fields->Add("k1", &k1, "Kannala-Brandt k1");
-  fields->Add("k2", &k2, "Kannala-Brandt k2");
-  fields->Add("k3", &k3, "Kannala-Brandt k3");
+  fields->Add("model", &model, "lens model: kannala_brandt | pinhole_radtan | double_sphere");
+  fields->Add("focal_px", &focal_px,
+              "focal length (px per radian of a fisheye, px per unit tangent of a pinhole)");
+  fields->Add("k1", &k1, "Kannala-Brandt k1; pinhole_radtan radial k1");
+  fields->Add("k2", &k2, "Kannala-Brandt k2; pinhole_radtan radial k2");
+  fields->Add("k3", &k3, "Kannala-Brandt k3; pinhole_radtan radial k3");
   fields->Add("k4", &k4, "Kannala-Brandt k4");
+  fields->Add("p1", &p1, "pinhole_radtan tangential p1");
+  fields->Add("p2", &p2, "pinhole_radtan tangential p2");
+  fields->Add("xi", &xi, "double_sphere xi");
+  fields->Add("alpha", &alpha, "double_sphere alpha");
   fields->Add("camera_distance", &camera_distance,
               "camera centre to the face surface along the axis (mm)");
   fields->Add("upper_camera_y", &upper_camera_y, "upper camera height (mm, helmet space)");
@@ -36,8 +43,16 @@ bool HelmetRigOptions::Check() const {
   CHECK_OPTION_IN(k2, -1.0, 1.0);
   CHECK_OPTION_IN(k3, -1.0, 1.0);
   CHECK_OPTION_IN(k4, -1.0, 1.0);
-  const double k[4] = {k1, k2, k3, k4};
-  CHECK_OPTION(fisheye_internal::IsMonotonicUpTo(k, M_PI / 2));
+  CameraModel lens;
+  CHECK_OPTION(ParseCameraModel(model, &lens));
+  CHECK_OPTION_IN(p1, -0.1, 0.1);
+  CHECK_OPTION_IN(p2, -0.1, 0.1);
+  CHECK_OPTION_IN(alpha, 0.0, 1.0);
+  CHECK_OPTION_IN(xi, -0.99, 10.0);
+  // The lens must be one-to-one over the field a helmet camera sees (to 90
+  // degrees off axis; a pinhole lens to 60).
+  const double needed = lens == CameraModel::kPinholeRadTan ? M_PI / 3 : M_PI / 2;
+  CHECK_OPTION(MakeCamera(*this).MaxTheta() >= needed);
   CHECK_OPTION_IN(camera_distance, 50.0, 1000.0);
   CHECK_OPTION_IN(upper_camera_y, -1000.0, 1000.0);
   CHECK_OPTION_IN(lower_camera_y, -1000.0, 1000.0);
@@ -76,17 +91,36 @@ Rigid3 TagPose(const Vec3& centre, const Vec3& target) {
 
 }  // namespace
 
-HelmetRig MakeHelmetRig(const HelmetRigOptions& options,
-                        double face_front_z_upper, double face_front_z_lower) {
-  HelmetRig rig;
-  FisheyeCamera camera;
+Camera MakeCamera(const HelmetRigOptions& options) {
+  Camera camera;
+  if (!ParseCameraModel(options.model, &camera.model)) {
+    throw InputError(fmt::format("rig.model '{}' is not a lens model ({})", options.model,
+                                 CameraModelNames()));
+  }
   camera.width = options.width;
   camera.height = options.height;
   camera.fx = options.focal_px;
   camera.fy = options.focal_px;
   camera.cx = (options.width - 1) / 2.0 + 3.7;  // a real lens is never centred
   camera.cy = (options.height - 1) / 2.0 - 2.9;
-  camera.k = {options.k1, options.k2, options.k3, options.k4};
+  switch (camera.model) {
+    case CameraModel::kKannalaBrandt:
+      camera.k = {options.k1, options.k2, options.k3, options.k4, 0};
+      break;
+    case CameraModel::kPinholeRadTan:
+      camera.k = {options.k1, options.k2, options.p1, options.p2, options.k3};
+      break;
+    case CameraModel::kDoubleSphere:
+      camera.k = {options.xi, options.alpha, 0, 0, 0};
+      break;
+  }
+  return camera;
+}
+
+HelmetRig MakeHelmetRig(const HelmetRigOptions& options,
+                        double face_front_z_upper, double face_front_z_lower) {
+  HelmetRig rig;
+  const Camera camera = MakeCamera(options);
   // Both cameras sit on one vertical boom at the upper camera's distance.
   const double boom_z = face_front_z_upper + options.camera_distance;
   const Vec3 upper(0, options.upper_camera_y, boom_z);

@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "synth/lens_test_rigs.h"
 #include "synth/synth_random.h"
 
 namespace hmc {
@@ -105,6 +106,39 @@ TEST(HelmetRigTest, TagsFaceBothCamerasAndAreInView) {
       }
     }
   }
+}
+
+// Issue 44, item 5: the renderer's rig takes any lens model; the model and
+// its parameters reach calibration.yaml, and the tags stay in view of both
+// cameras through a narrow pinhole lens and a double-sphere fisheye.
+TEST(HelmetRigTest, EveryLensModelReachesTheCalibration) {
+  const auto dir = std::filesystem::temp_directory_path() / "hmc_helmet_rig_model_test";
+  EnsureDirectory(dir);
+  const std::vector<HelmetRigOptions> lenses = OtherLensRigOptions();
+  for (const HelmetRigOptions& options : lenses) {
+    ASSERT_TRUE(options.Check()) << options.model;
+    const HelmetRig rig = MakeHelmetRig(options, 110.0, 95.0);
+    WriteCalibration(dir / "calibration.yaml", rig);
+    const HelmetRig back = ReadCalibration(dir / "calibration.yaml");
+    for (size_t c = 0; c < rig.cameras.size(); ++c) {
+      const Camera& cam = back.cameras[c].camera;
+      EXPECT_STREQ(CameraModelName(cam.model), options.model.c_str());
+      EXPECT_EQ(cam.Params(), rig.cameras[c].camera.Params());
+      for (const HelmetTag& tag : rig.tags) {
+        for (const Vec3& corner : tag.CornersInHelmet()) {
+          Vec2 pixel;
+          ASSERT_TRUE(cam.Project(back.cameras[c].cam_from_helmet * corner, &pixel));
+          EXPECT_TRUE(cam.IsInImage(pixel)) << options.model;
+        }
+      }
+    }
+  }
+  const Camera pinhole = MakeCamera(lenses[0]);
+  EXPECT_EQ(pinhole.k[RadTan::kRadTanP1], 0.0004);
+  EXPECT_EQ(pinhole.k[RadTan::kRadTanK3], 0.001);
+  HelmetRigOptions unknown;
+  unknown.model = "fisheye";
+  EXPECT_FALSE(unknown.Check());
 }
 
 }  // namespace

@@ -36,7 +36,7 @@ const std::vector<float>& NormalTable() {
 }  // namespace
 
 cv::Mat RecordSensorImage(const cv::Mat& signal, const cv::Mat& vignette, double read_noise,
-                          double shot_noise, uint64_t noise_key) {
+                          double shot_noise, uint64_t noise_key, bool srgb) {
   HMC_CHECK(signal.type() == CV_32F);
   HMC_CHECK(vignette.empty() || (vignette.type() == CV_32F && vignette.size() == signal.size()));
   const int width = signal.cols;
@@ -58,7 +58,13 @@ cv::Mat RecordSensorImage(const cv::Mat& signal, const cv::Mat& vignette, double
         level += std::sqrt(read * read + shot * std::max(level, 0.0)) *
                  normals[h >> (64 - kNormalTableBits)];
       }
-      row[x] = static_cast<uint8_t>(std::clamp(level, 0.0, 255.0) + 0.5);
+      level = std::clamp(level, 0.0, 255.0);
+      if (srgb) {
+        // IEC 61966-2-1, applied before quantisation as a camera does.
+        const double v = level / 255.0;
+        level = 255.0 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055);
+      }
+      row[x] = static_cast<uint8_t>(level + 0.5);
     }
   });
   return image;

@@ -14,8 +14,9 @@ namespace hmc {
 // vignette plus a normal draw of variance read^2 + shot * level, rounded
 // and clamped to 8 bits. The draw is hashed from (noise_key, pixel), so the
 // image is the same whatever the thread count; noise_key must differ per
-// frame and camera.
+// frame and camera. With `srgb` the clamped level is encoded with the sRGB
+// curve (IEC 61966-2-1) before rounding, as a camera writing sRGB does.
 cv::Mat RecordSensorImage(const cv::Mat& signal, const cv::Mat& vignette, double read_noise,
-                          double shot_noise, uint64_t noise_key);
+                          double shot_noise, uint64_t noise_key, bool srgb = false);
 
 }  // namespace hmc

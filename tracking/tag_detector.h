@@ -29,7 +29,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera_fisheye.h"
+#include "core/camera.h"
 #include "core/options.h"
 #include "core/types.h"
 

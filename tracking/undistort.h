@@ -4,8 +4,8 @@
 // The pinhole view shares the camera's centre and axes; its pixel (u, v)
 // sees the ray ((u - c_x) / f, (v - c_y) / f, 1), f = (W / 2) / tan(F / 2)
 // for the horizontal field of view F. The remap table holds, per pinhole
-// pixel, the exact Kannala-Brandt projection of that ray
-// (core/camera_fisheye.h; not cv::fisheye, wrong beyond ~90 degrees), and
+// pixel, the exact projection of that ray through the camera's lens model
+// (core/camera.h; not OpenCV's undistortion, wrong beyond ~90 degrees), and
 // cv::remap samples the fisheye frame there (bilinear).
 #pragma once
 

@@ -92,11 +92,13 @@ double AngleDeg(const Mat3& a, const Mat3& b) {
 // One tag corner seen by one camera:
 //   r = Project(K(f, cx, cy), R(q_c) (R(q_t) X + t_t) + t_c) - u     (px)
 // q_c, t_c: cam_from_helmet; q_t, t_t: helmet_from_tag; X: the corner in the
-// tag frame; focal = (fx, cx, cy) with fy = fx * fy_over_fx, k1..k4 fixed.
+// tag frame; focal = (fx, cx, cy) with fy = fx * fy_over_fx, the lens
+// model's distortion parameters fixed (core/camera.h).
 struct CornerResidual {
   Vec3 corner_in_tag;
   Vec2 observed;
-  std::array<double, kNumFisheyeParams> intrinsics;  // k1..k4 used from here
+  CameraModel model;
+  std::array<double, kNumCameraParams> intrinsics;  // distortion used from here
   double fy_over_fx;
 
   template <typename T>
@@ -106,14 +108,14 @@ struct CornerResidual {
     const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tc(cam_t), tt(tag_t);
     const Eigen::Matrix<T, 3, 1> x = corner_in_tag.cast<T>();
     const Eigen::Matrix<T, 3, 1> p_cam = qc * (qt * x + tt) + tc;
-    T params[kNumFisheyeParams];
+    T params[kNumCameraParams];
     params[kFx] = focal[0];
     params[kFy] = focal[0] * fy_over_fx;
     params[kCx] = focal[1];
     params[kCy] = focal[2];
-    for (int i = kK1; i <= kK4; ++i) params[i] = T(intrinsics[i]);
+    for (int i = kK1; i < kNumCameraParams; ++i) params[i] = T(intrinsics[i]);
     T pixel[2];
-    if (!FisheyeCamera::Project(params, p_cam.data(), pixel)) return false;
+    if (!Camera::Project(model, params, p_cam.data(), pixel)) return false;
     residual[0] = pixel[0] - observed.x();
     residual[1] = pixel[1] - observed.y();
     return true;
@@ -175,7 +177,7 @@ Solution Solve(const HelmetRig& nominal, const std::vector<TagObservation>& obs,
     const auto corners = CornersInTag(nominal.tags[o.tag].size);
     for (int k = 0; k < 4; ++k) {
       auto* cost = new ceres::AutoDiffCostFunction<CornerResidual, 2, 4, 3, 4, 3, 3>(
-          new CornerResidual{corners[k], o.corners[k], hc.camera.Params(),
+          new CornerResidual{corners[k], o.corners[k], hc.camera.model, hc.camera.Params(),
                              hc.camera.fy / hc.camera.fx});
       problem.AddResidualBlock(cost, new ceres::HuberLoss(options.huber_px), s.cams[o.camera].q,
                                s.cams[o.camera].t, s.tags[o.tag].q, s.tags[o.tag].t,

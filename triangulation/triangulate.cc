@@ -106,8 +106,8 @@ bool Residuals(const HelmetRig& rig, const std::vector<View>& views, const Vec3&
   for (int v = 0; v < n; ++v) {
     const HelmetCamera& hc = rig.cameras[views[v].camera];
     const auto params = hc.camera.Params();
-    Jet intrinsics[kNumFisheyeParams];
-    for (int i = 0; i < kNumFisheyeParams; ++i) intrinsics[i] = Jet(params[i]);
+    Jet intrinsics[kNumCameraParams];
+    for (int i = 0; i < kNumCameraParams; ++i) intrinsics[i] = Jet(params[i]);
     const Mat3& R = hc.cam_from_helmet.linear();
     const Vec3& t = hc.cam_from_helmet.translation();
     Jet q[3];
@@ -115,7 +115,7 @@ bool Residuals(const HelmetRig& rig, const std::vector<View>& views, const Vec3&
       q[i] = Jet(t[i]) + R(i, 0) * pj[0] + R(i, 1) * pj[1] + R(i, 2) * pj[2];
     }
     Jet pixel[2];
-    if (!FisheyeCamera::Project(intrinsics, q, pixel)) return false;
+    if (!Camera::Project(hc.camera.model, intrinsics, q, pixel)) return false;
     for (int k = 0; k < 2; ++k) {
       (*r)[2 * v + k] = pixel[k].a - views[v].pixel[k];
       if (J) J->row(2 * v + k) = pixel[k].v.transpose();

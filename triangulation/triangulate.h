@@ -12,7 +12,7 @@
 //  3. p is refined by Gauss-Newton on the reprojection error in the fisheye
 //     images,
 //       E(p) = sum_c |Project_c(cam_c_from_helmet p) - u_c|^2   (px^2),
-//     with exact Jacobians (ceres::Jet through FisheyeCamera::Project);
+//     with exact Jacobians (ceres::Jet through Camera::Project);
 //     for two views this is the optimal (maximum-likelihood under isotropic
 //     pixel noise) two-view triangulation;
 //  4. the pair is gated: a view whose residual exceeds gate_px means a

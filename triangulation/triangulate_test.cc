@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/temp_dir.h"
 #include "synth/helmet_rig.h"
+#include "synth/lens_test_rigs.h"
 
 namespace hmc {
 namespace {
@@ -20,9 +21,10 @@ struct Scene {
   std::vector<Track2d> tracks;  // exact projections where in both images
 };
 
-Scene MakeScene(uint64_t seed, int frames, int markers) {
+Scene MakeScene(uint64_t seed, int frames, int markers,
+                const HelmetRigOptions& rig_options = HelmetRigOptions()) {
   Scene s;
-  s.rig = MakeHelmetRig(HelmetRigOptions(), 100, 95);
+  s.rig = MakeHelmetRig(rig_options, 100, 95);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> ux(-55, 55), uy(-105, 35), uz(40, 105);
   for (int f = 1; f <= frames; ++f) {
@@ -56,6 +58,21 @@ TEST(TriangulateTest, ExactProjectionsGiveTheTruth) {
     EXPECT_EQ(out.summary.triangulated, out.summary.candidates) << "seed " << seed;
     EXPECT_LT(a.max_mm, 1e-6) << "seed " << seed;
     EXPECT_LT(out.summary.max_residual_px, 1e-6) << "seed " << seed;
+  }
+}
+
+// Issue 44, item 5: the same through a narrow pinhole radial-tangential
+// lens and a double-sphere fisheye (unprojection and the Jet Jacobians of
+// the refinement go through the camera's model).
+TEST(TriangulateTest, ExactProjectionsGiveTheTruthThroughEveryLensModel) {
+  for (const HelmetRigOptions& options : OtherLensRigOptions()) {
+    const Scene s = MakeScene(4, 5, 60, options);
+    const TriangulateOutput out = RunTriangulate({&s.rig, &s.tracks, "tracks"}, {});
+    const TriangulationAccuracy a = EvaluateTriangulation(out.bundles, s.truth, {}, 2);
+    ASSERT_GT(a.compared, 150) << options.model;
+    EXPECT_EQ(out.summary.triangulated, out.summary.candidates) << options.model;
+    EXPECT_LT(a.max_mm, 1e-6) << options.model;
+    EXPECT_LT(out.summary.max_residual_px, 1e-6) << options.model;
   }
 }
 
