@@ -31,8 +31,8 @@ endfunction()
 # <target>_test, registered with CTest.
 # NO_UNITY: files of the folder compiled on their own when the tree is a
 # unity build (-DCMAKE_UNITY_BUILD=ON, as scripts/test builds): each one
-# defines, in its anonymous namespace, a name that another file of the same
-# target defines too (docs/PERFORMANCE.md, "The test command").
+# clashes with another file of the target in one unit, mostly a name both
+# define in their anonymous namespace (docs/PERFORMANCE.md, "The test command").
 function(hmc_add_library)
   cmake_parse_arguments(ARG "" "NAME" "PUBLIC_DEPS;PRIVATE_DEPS;TEST_DEPS;NO_UNITY" ${ARGN})
   file(GLOB sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
