@@ -23,7 +23,6 @@
 namespace hmc {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 double Uniform(std::mt19937* rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(*rng);
@@ -62,7 +61,7 @@ Camera RandomLens(CameraModel model, std::mt19937* rng) {
 Vec3 RandomBearing(std::mt19937* rng, double max_theta) {
   const double cos_theta = Uniform(rng, std::cos(max_theta), 1.0);
   const double sin_theta = std::sqrt(1 - cos_theta * cos_theta);
-  const double phi = Uniform(rng, -kPi, kPi);
+  const double phi = Uniform(rng, -M_PI, M_PI);
   return Vec3(sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta);
 }
 
@@ -71,7 +70,7 @@ Vec3 RandomBearing(std::mt19937* rng, double max_theta) {
 // (pinhole_radtan: up to 85 degrees, past any real lens's field).
 double TestedTheta(const Camera& c) {
   const double limit = c.MaxTheta();
-  if (c.model == CameraModel::kPinholeRadTan) return std::min(0.97 * limit, 85 * kPi / 180);
+  if (c.model == CameraModel::kPinholeRadTan) return std::min(0.97 * limit, 85 * M_PI / 180);
   return 0.995 * limit;
 }
 
@@ -94,7 +93,7 @@ TEST_P(CameraModelSeeded, ProjectThenUnprojectIsIdentityOverTheWholeField) {
       EXPECT_NEAR(back.norm(), 1.0, 1e-12);
       const double angle = std::atan2(back.cross(bearing).norm(), back.dot(bearing));
       EXPECT_LT(angle, 1e-9) << CameraModelName(model) << " theta "
-                             << std::acos(bearing.z()) * 180 / kPi << " deg";
+                             << std::acos(bearing.z()) * 180 / M_PI << " deg";
     }
   }
 }
@@ -211,7 +210,7 @@ TEST(CameraTest, PointsAndPixelsOutsideTheDomainAreRefused) {
   Camera ds = RandomLens(CameraModel::kDoubleSphere, &rng);
   ds.k[DoubleSphere::kAlpha] = 0.7;
   const double theta = ds.MaxTheta();
-  ASSERT_LT(theta, kPi);
+  ASSERT_LT(theta, M_PI);
   EXPECT_FALSE(ds.Project(Vec3(std::sin(theta + 0.01), 0, std::cos(theta + 0.01)), &pixel));
   EXPECT_TRUE(ds.Project(Vec3(std::sin(theta - 0.01), 0, std::cos(theta - 0.01)), &pixel));
   const double r_end = 1 / std::sqrt(2 * 0.7 - 1);

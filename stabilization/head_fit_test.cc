@@ -6,6 +6,8 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "stabilization/shot_test_util.h"
+
 namespace hmc {
 namespace {
 
@@ -46,16 +48,6 @@ BroadRig MakeBroadRig(int seed, int n, int num_shapes) {
   return rig;
 }
 
-Rigid3 RandomPose(std::mt19937& rng, double max_deg, double max_mm) {
-  std::uniform_real_distribution<double> u(-1, 1);
-  Rigid3 t = Rigid3::Identity();
-  t.linear() = Eigen::AngleAxisd(max_deg * M_PI / 180 * u(rng),
-                                 Vec3(u(rng), u(rng), u(rng)).normalized())
-                   .toRotationMatrix();
-  t.translation() = max_mm * Vec3(u(rng), u(rng), u(rng));
-  return t;
-}
-
 // Helmet-space bundles of the expression c seen with head_from_helmet.
 Eigen::Matrix3Xd Bundles(const BroadRig& rig, const Eigen::VectorXd& c,
                          const Rigid3& head_from_helmet) {
@@ -92,7 +84,7 @@ TEST_P(HeadFitSeeded, RecoversThePoseUnderBroadExpressionsToConvergence) {
   for (int trial = 0; trial < 5; ++trial) {
     Eigen::VectorXd c(24);
     for (int s = 0; s < 24; ++s) c[s] = unit(rng);
-    const Rigid3 truth = RandomPose(rng, 10, 15);
+    const Rigid3 truth = RandomRigid(rng, 10, 15);
     const Eigen::Matrix3Xd a = Bundles(rig, c, truth);
     const HeadFitResult fit = FitHeadAndExpression(a, rig.q, rig.b, Eigen::VectorXd::Ones(80),
                                                    Identity(), HeadFitOptions());
@@ -113,7 +105,7 @@ TEST_P(HeadFitSeeded, IsExactWithoutTheRidge) {
   std::uniform_real_distribution<double> unit(0, 1);
   Eigen::VectorXd c(24);
   for (int s = 0; s < 24; ++s) c[s] = unit(rng);
-  const Rigid3 truth = RandomPose(rng, 10, 15);
+  const Rigid3 truth = RandomRigid(rng, 10, 15);
   HeadFitOptions options;
   options.ridge = 1e-9;
   const HeadFitResult fit = FitHeadAndExpression(Bundles(rig, c, truth), rig.q, rig.b,
@@ -129,10 +121,10 @@ TEST_P(HeadFitSeeded, IsEquivariantUnderAHelmetMotion) {
   std::mt19937 rng(GetParam() + 70);
   std::normal_distribution<double> noise(0, 0.3);
   Eigen::VectorXd c = Eigen::VectorXd::Constant(16, 0.4);
-  const Rigid3 truth = RandomPose(rng, 5, 10);
+  const Rigid3 truth = RandomRigid(rng, 5, 10);
   Eigen::Matrix3Xd a = Bundles(rig, c, truth);
   for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] += noise(rng);
-  const Rigid3 moved_from_helmet = RandomPose(rng, 30, 80);
+  const Rigid3 moved_from_helmet = RandomRigid(rng, 30, 80);
   Eigen::VectorXd s = Eigen::VectorXd::Ones(60);
   s.head(20).setConstant(0.3);
   HeadFitOptions options;
@@ -155,7 +147,7 @@ TEST_P(HeadFitSeeded, ShapeAndMarkerSpaceFormsAgree) {
   std::mt19937 rng(GetParam() + 80);
   std::normal_distribution<double> noise(0, 0.2);
   Eigen::VectorXd c = Eigen::VectorXd::Constant(10, 0.5);
-  const Rigid3 truth = RandomPose(rng, 5, 10);
+  const Rigid3 truth = RandomRigid(rng, 5, 10);
   Eigen::Matrix3Xd a = Bundles(rig, c, truth);
   for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] += noise(rng);
   Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(3 * n, 3 * n + 5);
@@ -178,7 +170,7 @@ TEST_P(HeadFitSeeded, ABadTrackIsDownWeighted) {
   const BroadRig rig = MakeBroadRig(GetParam() + 40, 80, 24);
   std::mt19937 rng(GetParam() + 90);
   Eigen::VectorXd c = Eigen::VectorXd::Constant(24, 0.3);
-  const Rigid3 truth = RandomPose(rng, 5, 10);
+  const Rigid3 truth = RandomRigid(rng, 5, 10);
   Eigen::Matrix3Xd a = Bundles(rig, c, truth);
   a.col(7) += Vec3(3, -4, 2).normalized() * 6;
   const HeadFitResult fit = FitHeadAndExpression(a, rig.q, rig.b, Eigen::VectorXd::Ones(80),

@@ -4,19 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include "stabilization/shot_test_util.h"
+
 namespace hmc {
 namespace {
-
-Rigid3 RandomRigid(std::mt19937& rng, double max_angle_rad, double max_mm) {
-  std::normal_distribution<double> normal;
-  std::uniform_real_distribution<double> uniform(-1, 1);
-  Rigid3 t = Rigid3::Identity();
-  t.linear() = Eigen::AngleAxisd(max_angle_rad * uniform(rng),
-                                 Vec3(normal(rng), normal(rng), normal(rng)).normalized())
-                   .toRotationMatrix();
-  t.translation() = max_mm * Vec3(uniform(rng), uniform(rng), uniform(rng));
-  return t;
-}
 
 class RigidFitSeeded : public ::testing::TestWithParam<unsigned> {};
 
@@ -25,7 +16,7 @@ TEST_P(RigidFitSeeded, RecoversAnExactRigidMotionWhateverTheWeights) {
   std::normal_distribution<double> normal(0, 40);
   std::uniform_real_distribution<double> weight(0.001, 1);
   const int n = 5 + GetParam() % 20;
-  const Rigid3 truth = RandomRigid(rng, 3.0, 50);
+  const Rigid3 truth = RandomRigid(rng, 3.0 * 180 / M_PI, 50);
   Eigen::Matrix3Xd a(3, n), b(3, n);
   Eigen::VectorXd w(n);
   for (int i = 0; i < n; ++i) {
@@ -47,7 +38,7 @@ TEST_P(RigidFitSeeded, MinimisesTheWeightedSquaredResidual) {
   const int n = 12;
   Eigen::Matrix3Xd a(3, n), b(3, n);
   Eigen::VectorXd w(n);
-  const Rigid3 truth = RandomRigid(rng, 1.0, 20);
+  const Rigid3 truth = RandomRigid(rng, 1.0 * 180 / M_PI, 20);
   for (int i = 0; i < n; ++i) {
     a.col(i) = Vec3(normal(rng), normal(rng), normal(rng));
     b.col(i) = truth * Vec3(a.col(i)) + Vec3(noise(rng), noise(rng), noise(rng));
@@ -60,7 +51,7 @@ TEST_P(RigidFitSeeded, MinimisesTheWeightedSquaredResidual) {
   };
   const double best = energy(fit.target_from_source);
   for (int trial = 0; trial < 50; ++trial) {
-    const Rigid3 perturbed = RandomRigid(rng, 1e-3, 1e-2) * fit.target_from_source;
+    const Rigid3 perturbed = RandomRigid(rng, 1e-3 * 180 / M_PI, 1e-2) * fit.target_from_source;
     EXPECT_GE(energy(perturbed), best - 1e-9);
   }
 }

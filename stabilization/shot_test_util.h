@@ -5,6 +5,7 @@
 #pragma once
 
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "core/actor.h"
@@ -83,6 +84,19 @@ inline ShotTruth MakeShotTruth(const SmallActor& a, const PerformanceOptions& pe
     out.jaw.push_back({frame, a.model->JawPoseOf(activations[f])});
   }
   return out;
+}
+
+// A random rigid motion: a rotation of up to max_deg about a random axis
+// and a translation of up to max_mm per axis.
+inline Rigid3 RandomRigid(std::mt19937& rng, double max_deg, double max_mm) {
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  Rigid3 t = Rigid3::Identity();
+  t.linear() = Eigen::AngleAxisd(max_deg * M_PI / 180 * uniform(rng),
+                                 Vec3(normal(rng), normal(rng), normal(rng)).normalized())
+                   .toRotationMatrix();
+  t.translation() = max_mm * Vec3(uniform(rng), uniform(rng), uniform(rng));
+  return t;
 }
 
 inline std::vector<PoseFrame> Poses(const std::vector<StabilizedFrame>& frames) {

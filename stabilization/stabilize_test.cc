@@ -17,17 +17,6 @@ const SmallActor& Actor1() {
   return actor;
 }
 
-Rigid3 RandomRigid(std::mt19937& rng, double max_deg, double max_mm) {
-  std::normal_distribution<double> normal;
-  std::uniform_real_distribution<double> uniform(-1, 1);
-  Rigid3 t = Rigid3::Identity();
-  t.linear() = Eigen::AngleAxisd(max_deg * M_PI / 180 * uniform(rng),
-                                 Vec3(normal(rng), normal(rng), normal(rng)).normalized())
-                   .toRotationMatrix();
-  t.translation() = max_mm * Vec3(uniform(rng), uniform(rng), uniform(rng));
-  return t;
-}
-
 std::vector<StabilizeOptions> Variants() {
   std::vector<StabilizeOptions> out(4);
   out[1].expression = true;
