@@ -39,6 +39,9 @@ void RunOptions::Register(OptionFields* fields) {
               "refine the rig from the helmet tags (false: use --calibration as it is)");
   fields->Add("export", &export_formats,
               "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
+  fields->Add("fps", &fps,
+              "frame rate of the mesh caches (frames/s; 0 = the video's own, 30 for an image "
+              "sequence, which declares none)");
 }
 
 namespace {
@@ -81,6 +84,7 @@ bool RunOptions::Check() const {
   } catch (const InputError& e) {
     fail(e.what());
   }
+  if (!(fps >= 0 && fps <= 1000)) fail("fps must be in [0, 1000] (0 = the footage's own)");
   for (const std::string& f : ExportFormats(export_formats)) {
     if (f != "usda" && f != "mdd" && f != "obj") fail(fmt::format("export format '{}' is not usda, mdd or obj", f));
   }
@@ -155,8 +159,9 @@ class Pipeline {
   }
   std::vector<std::string> FootageFlags() const;
   void AddFootageInputs(StageKey* key) const;
-  // `--fps F` for the solve and the exports: the footage's frame rate
-  // (none for an image sequence, which declares none).
+  // `--fps F` for the solve and the exports: the run's `fps` if set, else
+  // the footage's frame rate (none for an image sequence, which declares
+  // none: the commands' default).
   std::vector<std::string> FrameRateFlags() const;
 
   RunInput input_;
@@ -189,6 +194,7 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
 }
 
 std::vector<std::string> Pipeline::FrameRateFlags() const {
+  if (options_.fps > 0) return {"--fps", fmt::format("{}", options_.fps)};
   const HelmetRig rig = ReadCalibration(input_.calibration);
   std::vector<std::string> names;
   for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
@@ -297,6 +303,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     if (actor_has_jaw_) key.AddInput("jaw", Out("jaw", "jaw.csv"));
     key.AddInputText("actor", actor_hash_);
     key.AddInputText("export", options_.export_formats);
+    key.AddInputText("fps", fmt::format("{}", options_.fps));
     plan.run = [this](const fs::path& dir) {
       std::vector<std::string> args = {"solve", "--actor", input_.actor, "--bundles",
                                        Out("stabilize", "bundles.csv").string(), "--out",

@@ -25,6 +25,7 @@ struct RunOptions {
   std::string frames;       // frame range A:B of the footage ("" = all)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
+  double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
 
   void Register(OptionFields* fields);
   bool Check() const;

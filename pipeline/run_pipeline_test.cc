@@ -168,6 +168,33 @@ TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {
   EXPECT_EQ(commands.calls, (std::vector<std::string>{"calibrate", "track", "report"}));
 }
 
+// An image sequence declares no frame rate: the caches are written at the
+// commands' default unless the run says otherwise (a 60 fps helmet's PNG
+// sequence must not come out at 30); a new rate redoes the solve only.
+TEST(RunPipelineTest, TheRunsFrameRateReachesTheSolveAndTheExports) {
+  Fixture fx;
+  FakeCommands commands;
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  for (const char* command : {"solve", "convert"}) {
+    const std::vector<std::string>& args = commands.args_of.at(command);
+    EXPECT_EQ(std::find(args.begin(), args.end(), "--fps"), args.end()) << command;
+  }
+  RunOptions options;
+  options.fps = 60;
+  commands.calls.clear();
+  RunPipeline(fx.input, options, std::ref(commands));
+  EXPECT_EQ(commands.calls, (std::vector<std::string>{"solve", "convert", "report"}));
+  for (const char* command : {"solve", "convert"}) {
+    const std::vector<std::string>& args = commands.args_of.at(command);
+    const auto it = std::find(args.begin(), args.end(), "--fps");
+    ASSERT_NE(it, args.end()) << command;
+    ASSERT_NE(it + 1, args.end()) << command;
+    EXPECT_EQ(*(it + 1), "60") << command;
+  }
+  options.fps = -1;
+  EXPECT_FALSE(options.Check());
+}
+
 TEST(RunPipelineTest, FromAndToChooseTheStages) {
   Fixture fx;
   FakeCommands commands;
