@@ -171,6 +171,7 @@ class Pipeline {
   std::map<std::string, std::string> config_;
   std::string actor_hash_;
   bool actor_has_jaw_ = false;
+  bool rig_has_tags_ = true;  // false: a tagless helmet, whose rig is used as it is
 };
 
 std::vector<std::string> Pipeline::FootageFlags() const {
@@ -226,11 +227,19 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
   const fs::path calibration = Out("calibrate", "calibration.yaml");
   if (stage == "calibrate") {
     key.AddInput("calibration", input_.calibration);
-    key.AddInputText("refine", options_.calibrate ? "tags" : "none");
-    if (!options_.calibrate) {
-      plan.run = [this](const fs::path& dir) {
+    const bool refine = options_.calibrate && rig_has_tags_;
+    key.AddInputText("refine", refine ? "tags" : "none");
+    if (!refine) {
+      // A helmet without tags (most have none): the pair's own stereo
+      // calibration is the rig, and the head's place in the helmet comes
+      // from the footage (track registers it, stabilize fits it per frame;
+      // docs/calibration.md, "A helmet without tags").
+      const std::string why = options_.calibrate ? "the helmet has no tags: used as it is"
+                                                 : "run.calibrate false: copied as it is";
+      plan.run = [this, why](const fs::path& dir) {
+        spdlog::info("calibrate: {}: {}", input_.calibration, why);
         WriteFileAtomic(dir / "calibration.yaml", ReadFile(input_.calibration));
-        return nlohmann::json{{"calibration", "given (run.calibrate false): copied as it is"}};
+        return nlohmann::json{{"calibration", "given (" + why + ")"}};
       };
       return plan;
     }
@@ -356,6 +365,7 @@ RunSummary Pipeline::Run() {
   const Actor& actor = *loaded;
   actor_hash_ = HashHex(actor.content_hash);
   actor_has_jaw_ = actor.jaw_rig.has_value();
+  rig_has_tags_ = !rig.tags.empty();
   const int last = StageIndex(options_.to);
   const int forced = options_.from.empty() ? INT32_MAX : StageIndex(options_.from);
   RunSummary summary;

@@ -62,7 +62,7 @@ class FakeCommands {
 struct Fixture {
   TempDir dir;
   RunInput input;
-  explicit Fixture(const std::string& actor_rig = "generator") {
+  explicit Fixture(const std::string& actor_rig = "generator", bool tags = true) {
     SynthActorOptions actor;
     actor.rig = actor_rig;
     actor.grid_u = 24;
@@ -86,6 +86,12 @@ struct Fixture {
         cv::imwrite((dir.path() / "shot" / name / fmt::format("frame_{:06d}.png", f)).string(),
                     cv::Mat(24, 32, CV_8U, cv::Scalar(10 * f)));
       }
+    }
+    if (tags) {
+      HelmetTag tag;
+      tag.size = 20;
+      tag.helmet_from_tag = Rigid3::Identity();
+      rig.tags.push_back(tag);
     }
     WriteCalibration(dir.path() / "calibration.yaml", rig);
     input.shot = (dir.path() / "shot").string();
@@ -145,6 +151,21 @@ TEST(RunPipelineTest, AnActorWithoutAJawRigSkipsTheJawStage) {
   commands.calls.clear();
   RunPipeline(fx.input, RunOptions{}, std::ref(commands));
   EXPECT_TRUE(commands.calls.empty());
+}
+
+// Most helmets carry no tags: their rig is the pair's stereo calibration,
+// used as it is with no option changed (issue 44).
+TEST(RunPipelineTest, AHelmetWithoutTagsUsesItsCalibrationAsItIs) {
+  Fixture fx("generator", /*tags=*/false);
+  FakeCommands commands;
+  const RunSummary s = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  EXPECT_EQ(commands.calls.front(), "track");
+  EXPECT_EQ(std::count(commands.calls.begin(), commands.calls.end(), "calibrate"), 0);
+  EXPECT_EQ(ReadFile(fs::path(fx.input.out) / "calibrate" / "calibration.yaml"),
+            ReadFile(fx.input.calibration));
+  const nlohmann::json summary = nlohmann::json::parse(
+      ReadFile(fs::path(fx.input.out) / "calibrate" / "summary.json"));
+  EXPECT_NE(summary.dump().find("no tags"), std::string::npos) << summary.dump();
 }
 
 TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {

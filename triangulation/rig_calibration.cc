@@ -535,7 +535,9 @@ CalibrateOutput RunCalibrate(const std::filesystem::path& shot,
                              const CalibrateOptions& options) {
   if (!options.Check()) throw InputError("invalid calibrate options (see the message above)");
   if (nominal.tags.empty()) {
-    ThrowInputError(nominal_path, 0, "key 'tags': the calibration has no helmet tags");
+    ThrowInputError(nominal_path, 0,
+                    "key 'tags': the calibration has no helmet tags to calibrate from (a "
+                    "tagless helmet's stereo calibration is used as it is: hmc run does so)");
   }
   ThreadLimit limit(options.threads);
   std::vector<std::string> names;
