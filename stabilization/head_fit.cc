@@ -192,12 +192,22 @@ HeadFitResult FitHeadAndExpression(const Eigen::Matrix3Xd& a, const Eigen::Matri
       out.weights[used[i]] = w[i];
       out.residuals_mm[used[i]] = r[i];
     }
-    if (round > 0 && out.last_step_mm <= options.tolerance_mm) {
-      out.converged = true;
-      break;
-    }
-    if (!robust) {
-      out.converged = true;  // the weights are the prior's: one round solves it
+    out.converged = (round > 0 && out.last_step_mm <= options.tolerance_mm) ||
+                    !robust;  // without a robust loss the weights are the prior's: one round
+    if (out.converged || round + 1 == options.max_iterations) {
+      const Eigen::Matrix3Xd p = t * a_used;
+      Eigen::MatrixXd jac(3 * n, 6);
+      for (int i = 0; i < n; ++i) {
+        jac.block<3, 3>(3 * i, 0) = -Skew(p.col(i));
+        jac.block<3, 3>(3 * i, 3).setIdentity();
+      }
+      // The estimate is delta = -H^-1 (QJ)^T d: for independent noise of
+      // unit variance per coordinate its covariance is H^-1 (QJ)^T QJ H^-1
+      // (the weights are not the noise's inverse variances).
+      const Eigen::MatrixXd qj = projection.Apply(jac);
+      const Eigen::Matrix<double, 6, 6> h = jac.transpose() * qj;
+      const Eigen::Matrix<double, 6, 6> m = qj.transpose() * qj;
+      out.information = h * m.ldlt().solve(h);
       break;
     }
     w = robust_weights(r);

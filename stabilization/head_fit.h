@@ -54,6 +54,12 @@ struct HeadFitResult {
   Eigen::VectorXd shape_weights;   // N: c
   Eigen::VectorXd weights;         // n: final s_k rho'(r_k) / r_k
   Eigen::VectorXd residuals_mm;    // n: |T a_k - q_k - B_k c|
+  // The inverse of the pose's covariance for independent noise of unit
+  // variance per coordinate, H (QJ)^T QJ)^-1 H with H = J^T Q J at the
+  // result, for the left perturbation T' = (I + [omega]x) T + v about head
+  // space's origin, parameters (omega in rad, v in mm): how well the
+  // frame's markers, with the expression projected out, determine its pose.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 // a, q: 3 x n helmet-space bundles and neutral markers (mm); b: 3n x N, rows

@@ -14,6 +14,7 @@
 #include "core/file_util.h"
 #include "core/parallel.h"
 #include "stabilization/head_fit.h"
+#include "stabilization/pose_trajectory.h"
 #include "stabilization/rigid_fit.h"
 
 namespace hmc {
@@ -36,6 +37,8 @@ void StabilizeOptions::Register(OptionFields* fields) {
   fields->Add("bad_track_mm", &bad_track_mm,
               "a trusted marker (prior weight >= 0.5) whose median residual exceeds this is "
               "reported (mm)");
+  fields->Add("temporal_prior", &temporal_prior,
+              "poses of frames the dataset explains less well informed by their neighbours");
   fields->Add("smooth_frames", &smooth_frames,
               "centred moving-average window over poses (frames; 0 or 1 = off)");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
@@ -169,6 +172,7 @@ class FrameStabilizer {
     out.iterations = fit.iterations;
     out.converged = fit.converged;
     out.last_step_mm = fit.last_step_mm;
+    out.information = fit.information;
     double sum_w = 0, sum_wr2 = 0;
     for (int i = 0; i < n; ++i) {
       // Every present marker's residual, also those of zero prior weight.
@@ -271,6 +275,46 @@ Eigen::VectorXd ShotWeights(const MarkerModel& model, const std::vector<Stabiliz
   return w;
 }
 
+// The temporal prior (stabilization/pose_trajectory.h) over the fitted
+// frames: sigma_f^2 the frame's weighted mean squared residual per
+// coordinate, floored at tolerance^2 (a residual below the fit's
+// convergence tolerance says nothing); rotations are about the neutral
+// markers' centroid, scaled by their RMS distance from it.
+void ApplyTemporalPrior(const MarkerModel& model, double tolerance_mm,
+                        std::vector<StabilizedFrame>* frames) {
+  std::vector<PoseMeasurement> measurements;
+  for (const StabilizedFrame& frame : *frames) {
+    PoseMeasurement m;
+    m.frame = frame.frame;
+    m.pose = frame.head_from_helmet;
+    m.ok = frame.ok;
+    m.information = frame.information;
+    double sum_w = 0, sum_wr2 = 0;
+    for (const MarkerResidual& r : frame.residuals) {
+      sum_w += r.weight;
+      sum_wr2 += r.weight * r.residual_mm * r.residual_mm;
+    }
+    m.variance_mm2 =
+        std::max(tolerance_mm * tolerance_mm, sum_w > 0 ? sum_wr2 / (3 * sum_w) : 0.0);
+    measurements.push_back(m);
+  }
+  const Vec3 center = model.neutral.colwise().mean().transpose();
+  const double lever =
+      std::sqrt((model.neutral.rowwise() - center.transpose()).rowwise().squaredNorm().mean());
+  const PoseTrajectoryResult smoothed =
+      SmoothPoseTrajectory(measurements, tolerance_mm, center, lever);
+  for (size_t f = 0; f < frames->size(); ++f) {
+    StabilizedFrame& frame = (*frames)[f];
+    const Rigid3 move = smoothed.poses[f] * frame.head_from_helmet.inverse();
+    frame.prior_move_mm = 0;
+    for (Eigen::Index k = 0; k < model.neutral.rows(); ++k) {
+      const Vec3 q = model.neutral.row(k).transpose();
+      frame.prior_move_mm = std::max(frame.prior_move_mm, (move * q - q).norm());
+    }
+    frame.head_from_helmet = smoothed.poses[f];
+  }
+}
+
 }  // namespace
 
 void InterpolateFailedPoses(std::vector<StabilizedFrame>* frames) {
@@ -323,6 +367,7 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
     }, 8);
   }
   InterpolateFailedPoses(&out.frames);
+  if (options.temporal_prior) ApplyTemporalPrior(model, options.tolerance_mm, &out.frames);
   SmoothPoses(options.smooth_frames, &out.frames);
 
   std::set<std::string> unknown;
@@ -349,6 +394,7 @@ StabilizeOutput RunStabilize(const MarkerModel& model,
     }
     ++out.num_ok;
     out.num_not_converged += !frame.converged;
+    out.prior_move_max_mm = std::max(out.prior_move_max_mm, frame.prior_move_mm);
     sum_rms += frame.rms_mm;
     for (const MarkerResidual& r : frame.residuals) {
       residuals[r.marker].push_back(r.residual_mm);
@@ -429,9 +475,11 @@ void WriteStabilizeOutput(const StabilizeOutput& output,
     fits.push_back({{"frame", frame.frame},
                     {"iterations", frame.iterations},
                     {"last_step_mm", frame.last_step_mm},
-                    {"converged", frame.converged}});
+                    {"converged", frame.converged},
+                    {"prior_move_mm", frame.prior_move_mm}});
   }
   summary["not_converged"] = output.num_not_converged;
+  summary["prior_move_max_mm"] = output.prior_move_max_mm;
   summary["fits"] = fits;
   nlohmann::json bad = nlohmann::json::array();
   for (const BadTrack& b : output.bad_tracks) {

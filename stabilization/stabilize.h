@@ -30,6 +30,12 @@
 //    prior weight of at least min_weight) or with collinear ones is flagged
 //    and its pose interpolated from the nearest good frames (rotation by
 //    slerp, translation linearly; held at the ends).
+//  - Temporal prior (`temporal_prior: true`): the poses of all frames
+//    together, each frame's fit weighted by how well it determines its
+//    pose (its residual variance: near zero where the dataset explains the
+//    markers) and the pose a random walk between frames whose step size is
+//    measured on the shot (stabilization/pose_trajectory.h); a frame with
+//    motion the dataset lacks leans on its neighbours.
 //  - Optional smoothing: a centred moving average of the poses over
 //    smooth_frames frames (slip is slow, vibration is fast: the vibration
 //    is real head-helmet motion, so smoothing is off by default).
@@ -59,6 +65,7 @@ struct StabilizeOptions {
   int min_markers = 4;           // fewer usable markers: the frame is interpolated
   double min_weight = 0.01;      // prior weight (of the largest) a usable marker needs
   double bad_track_mm = 1.0;     // a trusted marker (prior weight >= 0.5) whose median residual exceeds this is reported
+  bool temporal_prior = true;    // poses of frames the dataset explains less well informed by their neighbours (see stabilize.h)
   int smooth_frames = 0;         // centred moving-average window over poses (frames; 0 or 1 = off)
   int threads = 0;               // worker threads (0 = all cores)
 
@@ -82,7 +89,9 @@ struct StabilizedFrame {
   int iterations = 0;        // reweighting rounds of the (last pass's) fit
   bool converged = false;    // its last round moved no marker by more than tolerance_mm
   double last_step_mm = 0;   // how far its last round moved the furthest marker (mm)
-  std::vector<MarkerResidual> residuals;  // every present marker
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();  // of the fit (head_fit.h)
+  double prior_move_mm = 0;  // how far the temporal prior moved the furthest marker (mm)
+  std::vector<MarkerResidual> residuals;  // every present marker, against the fitted pose
 };
 
 struct BadTrack {
@@ -98,6 +107,7 @@ struct StabilizeOutput {
   int num_ok = 0;
   int num_interpolated = 0;
   int num_not_converged = 0;  // fitted frames whose fit stopped at max_iterations
+  double prior_move_max_mm = 0;  // the temporal prior's largest move of a marker (mm)
   double mean_rms_mm = 0;     // over fitted frames
   double seconds = 0;
   std::string BriefReport() const;
