@@ -32,8 +32,20 @@ void FootageOptions::Register(OptionFields* fields) {
   fields->Add("offset1", &offset1, "cam1 frame = cam0 frame + offset1 (frames)");
 }
 
+void FootageOptions::RegisterTransfer(OptionFields* fields) {
+  fields->SetGroup("footage");
+  fields->Add("transfer", &transfer,
+              "encoding of the footage's values: srgb | linear | auto (as each camera's files "
+              "say: PNG sRGB/iCCP/gAMA, JPEG sRGB; linear where not stated, videos among them)");
+  fields->SetGroup("");
+}
+
 bool FootageOptions::Check() const {
   bool ok = true;
+  if (transfer != "srgb" && transfer != "linear" && transfer != "auto") {
+    spdlog::error("footage options: transfer must be srgb, linear or auto, got '{}'", transfer);
+    ok = false;
+  }
   try {
     ParseFrameRange(frames, "frames");
   } catch (const InputError& e) {
@@ -127,6 +139,12 @@ class CameraSource {
   virtual std::vector<std::string> warnings() const { return {}; }
   // Frames per second as the source declares it (0: unknown, an image folder).
   virtual double fps() const { return 0; }
+  // What the source says of its values' encoding: "srgb", "linear" or ""
+  // (not stated), and where it says so.
+  virtual std::string StatedTransfer(std::string* why) const {
+    *why = "not stated";
+    return "";
+  }
 };
 
 // A folder of numbered images. Frames are named by file number: the
@@ -189,6 +207,14 @@ class ImageFolderSource : public CameraSource {
     }
   }
   cv::Size size() const override { return size_; }
+  // The first file's header speaks for the sequence.
+  std::string StatedTransfer(std::string* why) const override {
+    const fs::path& file = numbered_.begin()->second;
+    const ImageHeader h = ReadImageHeader(file);
+    *why = h.transfer.empty() ? fmt::format("not stated in {}", file.filename().string())
+                              : fmt::format("{} in {}", h.transfer_why, file.filename().string());
+    return h.transfer;
+  }
   int first() const override { return files_.begin()->first; }
   int last() const override { return files_.rbegin()->first; }
   cv::Mat Read(int frame, std::string* error) override {
@@ -280,6 +306,12 @@ class VideoSource : public CameraSource {
     return std::max(declared_frames_ > 0 ? declared_frames_ : INT_MAX - 1, pending_frame_);
   }
   double fps() const override { return fps_; }
+  // OpenCV 4.6 does not expose the stream's colour transfer
+  // (color_trc), so a video does not say.
+  std::string StatedTransfer(std::string* why) const override {
+    *why = "a video's colour transfer is not readable through OpenCV";
+    return "";
+  }
   cv::Mat Read(int frame, std::string* error) override {
     while (!ended_ && pending_frame_ < frame) Advance();
     if (!ended_ && pending_frame_ == frame) {
@@ -502,6 +534,7 @@ struct FootageReader::Impl {
   std::vector<fs::path> paths;
   std::vector<std::unique_ptr<CameraSource>> sources;
   std::vector<int> offsets;  // camera frame = cam0 frame + offset
+  std::vector<std::string> transfers, transfer_whys;  // per camera
   std::vector<std::string> warnings;
   int first = 1;
   int last = 0;
@@ -523,6 +556,22 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
     impl_->paths.push_back(FindSource(shot, name, override_path));
     impl_->sources.push_back(OpenSource(impl_->paths.back()));
     impl_->offsets.push_back(c == 1 ? options.offset1 : 0);
+  }
+  // The values' encoding per camera (docs/formats.md, "Footage input").
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    std::string why;
+    std::string transfer = options.transfer;
+    if (transfer == "auto") {
+      transfer = impl_->sources[c]->StatedTransfer(&why);
+      if (transfer.empty()) {
+        transfer = "linear";
+        why += ": assumed linear (set footage.transfer srgb for sRGB or BT.709 footage)";
+      }
+    } else {
+      why = "footage.transfer " + transfer;
+    }
+    impl_->transfers.push_back(transfer);
+    impl_->transfer_whys.push_back(why);
   }
   // Image folders are paired by file number: all numbered from the
   // smallest first number among them (0 or 1 alike), so a camera whose
@@ -613,6 +662,18 @@ int FootageReader::first_frame() const { return impl_->first; }
 int FootageReader::last_frame() const { return impl_->last; }
 const std::vector<std::string>& FootageReader::warnings() const { return impl_->warnings; }
 double FootageReader::fps() const { return impl_->sources[0]->fps(); }
+const std::string& FootageReader::transfer(int camera) const { return impl_->transfers[camera]; }
+const std::string& FootageReader::transfer_why(int camera) const {
+  return impl_->transfer_whys[camera];
+}
+
+void FootageReader::Linearize(FootageFrame* frame) const {
+  for (size_t c = 0; c < frame->images.size() && c < impl_->transfers.size(); ++c) {
+    if (impl_->transfers[c] == "srgb" && !frame->images[c].empty()) {
+      frame->images[c] = SrgbToLinear16(frame->images[c]);
+    }
+  }
+}
 
 bool FootageReader::Next(FootageFrame* frame) { return Next(frame, nullptr); }
 
@@ -686,6 +747,44 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
     }
     return true;
   }
+}
+
+namespace {
+
+// The sRGB decoding curve (IEC 61966-2-1) of a value in [0, 1].
+double SrgbToLinear(double v) {
+  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+}
+
+// Level -> linear 16-bit level, for every level of `levels` (256 or 65536).
+std::vector<uint16_t> SrgbTable(int levels) {
+  std::vector<uint16_t> table(levels);
+  for (int i = 0; i < levels; ++i) {
+    table[i] = static_cast<uint16_t>(std::lround(65535 * SrgbToLinear(i / (levels - 1.0))));
+  }
+  return table;
+}
+
+}  // namespace
+
+cv::Mat SrgbToLinear16(const cv::Mat& image) {
+  static const std::vector<uint16_t> table8 = SrgbTable(256);
+  static const std::vector<uint16_t> table16 = SrgbTable(65536);
+  HMC_CHECK(image.channels() == 1 && (image.depth() == CV_8U || image.depth() == CV_16U));
+  cv::Mat out(image.size(), CV_16U);
+  const bool eight = image.depth() == CV_8U;
+  const uint16_t* table = eight ? table8.data() : table16.data();
+  for (int y = 0; y < image.rows; ++y) {
+    uint16_t* o = out.ptr<uint16_t>(y);
+    if (eight) {
+      const uint8_t* i = image.ptr<uint8_t>(y);
+      for (int x = 0; x < image.cols; ++x) o[x] = table[i[x]];
+    } else {
+      const uint16_t* i = image.ptr<uint16_t>(y);
+      for (int x = 0; x < image.cols; ++x) o[x] = table[i[x]];
+    }
+  }
+  return out;
 }
 
 cv::Mat ToGrey8(const cv::Mat& image) {

@@ -42,9 +42,16 @@ struct FootageOptions {
   std::string cam1;     // cam1 video or image folder ("" = SHOT/cam1.<ext> or SHOT/cam1/)
   std::string frames;   // inclusive range "A:B" of frame numbers; "A:" or ":B" open ("" = all)
   int offset1 = 0;      // cam1 frame number = cam0 frame number + offset1 (frames)
+  // The encoding of the footage's values: srgb | linear | auto (what each
+  // camera's files say: PNG sRGB/iCCP/gAMA chunks, JPEG; linear where
+  // nothing is said, videos among them). Applied by FootageReader::
+  // Linearize, which only the commands that measure light call.
+  std::string transfer = "auto";
 
   // Adds the fields without a group ("cam0", "frames", "offset1", ...).
   void Register(OptionFields* fields);
+  // Adds "footage.transfer": for the commands that linearise (hmc track).
+  void RegisterTransfer(OptionFields* fields);
   bool Check() const;
 };
 
@@ -93,6 +100,16 @@ class FootageReader {
   // cam0's frame rate as its video declares it (frames per second); 0 when
   // unknown (an image folder).
   double fps() const;
+  // The encoding of a camera's values, "srgb" or "linear" (options.transfer,
+  // or with auto what the source says), and why ("footage.transfer",
+  // "PNG sRGB chunk in frame_000001.png", "not stated: assumed linear").
+  const std::string& transfer(int camera) const;
+  const std::string& transfer_why(int camera) const;
+  // Turns the images of the sRGB cameras into linear light, 16-bit (the
+  // sRGB curve inverted; 16 bits keep the dark levels apart that 8 would
+  // merge): what the dot detector measures (docs/tracking.md, "Images").
+  // Linear cameras' images are left as they are.
+  void Linearize(FootageFrame* frame) const;
 
   // Reads the next frame in order; false after the last one. Never throws
   // for a bad frame: the frame comes back with the camera's error set.
@@ -117,6 +134,9 @@ class FootageReader {
   static void ThrowIfGone(const Impl& d);
   std::unique_ptr<Impl> impl_;
 };
+
+// An sRGB-encoded grey image (8 or 16 bit) in linear light, 16-bit.
+cv::Mat SrgbToLinear16(const cv::Mat& image);
 
 // 8-bit view of a grey image from the reader (16-bit scaled by 1/257).
 cv::Mat ToGrey8(const cv::Mat& image);

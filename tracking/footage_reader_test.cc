@@ -1,6 +1,8 @@
 #include "tracking/footage_reader.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/temp_dir.h"
 
 namespace hmc {
@@ -334,6 +337,131 @@ TEST(FootageReaderTest, SixteenBitAndColourImagesBecomeGreyOfTheirDepth) {
   const cv::Mat a = ToGreyFloat(frame.images[0]);
   const cv::Mat b = ToGreyFloat(Pattern(0, 1));
   EXPECT_LT(cv::norm(a, b, cv::NORM_INF), 1e-6);
+}
+
+// A PNG chunk (length, type, data, CRC-32 of type and data) inserted after
+// IHDR, as a camera's encoder writes its colour-space chunks.
+void InsertPngChunk(const fs::path& path, const std::string& type, const std::string& data) {
+  std::string bytes = ReadFile(path);
+  std::string chunk;
+  for (int shift = 24; shift >= 0; shift -= 8) chunk += static_cast<char>((data.size() >> shift) & 0xff);
+  const std::string body = type + data;
+  uint32_t crc = 0xffffffffu;
+  for (const char ch : body) {
+    crc ^= static_cast<uint8_t>(ch);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xffffffffu;
+  chunk += body;
+  for (int shift = 24; shift >= 0; shift -= 8) chunk += static_cast<char>((crc >> shift) & 0xff);
+  bytes.insert(33, chunk);  // 8-byte signature + 25-byte IHDR chunk
+  WriteFileAtomic(path, bytes);
+}
+
+std::string BigEndian4(uint32_t v) {
+  return {static_cast<char>(v >> 24), static_cast<char>((v >> 16) & 0xff),
+          static_cast<char>((v >> 8) & 0xff), static_cast<char>(v & 0xff)};
+}
+
+// footage.transfer auto: each camera as its first file says (sRGB chunk,
+// gAMA, iCCP; nothing said: linear); srgb / linear override. The chunks
+// leave the pixels: OpenCV decodes the same (libpng warns that the
+// stand-in iCCP profile is too short).
+TEST(FootageReaderTest, TransferIsWhatThePngSaysOrTheOption) {
+  struct Case {
+    std::string chunk_type, chunk_data, expect;
+  };
+  const std::vector<Case> cases = {
+      {"", "", "linear"},
+      {"sRGB", std::string(1, '\0'), "srgb"},
+      {"gAMA", BigEndian4(45455), "srgb"},
+      {"gAMA", BigEndian4(100000), "linear"},
+      {"iCCP", std::string("sRGB IEC61966-2.1") + '\0' + '\0' + "xx", "srgb"},
+      {"iCCP", std::string("Linear Rec709") + '\0' + '\0' + "xx", "linear"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    WriteFolder(dir.path() / "cam0", 0, 1, 2);
+    WriteFolder(dir.path() / "cam1", 1, 1, 2);
+    if (!c.chunk_type.empty()) {
+      for (const char* name : {"frame_000001.png", "frame_000002.png"}) {
+        InsertPngChunk(dir.path() / "cam1" / name, c.chunk_type, c.chunk_data);
+      }
+    }
+    for (const std::string option : {"auto", "srgb", "linear"}) {
+      FootageOptions options;
+      options.transfer = option;
+      FootageReader reader(dir.path(), {"cam0", "cam1"}, options);
+      const std::string expect = option == "auto" ? c.expect : option;
+      EXPECT_EQ(reader.transfer(1), expect) << c.chunk_type << " " << option << ": "
+                                            << reader.transfer_why(1);
+      EXPECT_EQ(reader.transfer(0), option == "auto" ? "linear" : option);
+      FootageFrame frame;
+      ASSERT_TRUE(reader.Next(&frame));
+      EXPECT_TRUE(SameImage(frame.images[1], Pattern(1, 1))) << c.chunk_type;
+    }
+  }
+}
+
+// Linearize turns an sRGB camera's 8- or 16-bit values into linear light
+// (16-bit), within the encoding's quantisation; a linear camera's images
+// stay as they are.
+TEST(FootageReaderTest, SrgbFramesAreLinearisedWithinQuantisation) {
+  TempDir dir;
+  fs::create_directories(dir.path() / "cam0");
+  fs::create_directories(dir.path() / "cam1");
+  // A linear ramp over [0, 1], encoded by the sRGB curve to 8 and 16 bit.
+  cv::Mat linear(kSize, CV_64F);
+  for (int y = 0; y < kSize.height; ++y) {
+    for (int x = 0; x < kSize.width; ++x) {
+      linear.at<double>(y, x) = (y * kSize.width + x) / (kSize.area() - 1.0);
+    }
+  }
+  auto encode = [&](double full_scale, int type) {
+    cv::Mat out(kSize, type);
+    for (int y = 0; y < kSize.height; ++y) {
+      for (int x = 0; x < kSize.width; ++x) {
+        const double v = linear.at<double>(y, x);
+        const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+        const double q = std::round(e * full_scale);
+        if (type == CV_8U) out.at<uint8_t>(y, x) = static_cast<uint8_t>(q);
+        else out.at<uint16_t>(y, x) = static_cast<uint16_t>(q);
+      }
+    }
+    return out;
+  };
+  WritePng(dir.path() / "cam0" / "f1.png", encode(255, CV_8U), true);
+  WritePng(dir.path() / "cam1" / "f1.png", encode(65535, CV_16U), true);
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  ASSERT_EQ(reader.transfer(0), "srgb") << reader.transfer_why(0);
+  ASSERT_EQ(reader.transfer(1), "srgb") << reader.transfer_why(1);
+  FootageFrame frame;
+  ASSERT_TRUE(reader.Next(&frame));
+  const cv::Mat stored8 = frame.images[0].clone();
+  reader.Linearize(&frame);
+  for (int c = 0; c < 2; ++c) {
+    ASSERT_EQ(frame.images[c].type(), CV_16U);
+    cv::Mat read;
+    frame.images[c].convertTo(read, CV_64F, 1 / 65535.0);
+    // Half a step of the encoding in linear terms where it is widest (the
+    // sRGB decoding curve's slope is at most 2.4 / 1.055, at full scale),
+    // plus the 16-bit output's rounding.
+    const double step = (c == 0 ? 1 / 255.0 : 1 / 65535.0) * 2.4 / 1.055;
+    EXPECT_LT(cv::norm(read, linear, cv::NORM_INF), 0.5 * step + 1 / 65535.0) << "cam" << c;
+  }
+  // Read as stored, the same values are far from linear (mid-grey 0.5 is
+  // stored as 0.735).
+  cv::Mat as_stored;
+  stored8.convertTo(as_stored, CV_64F, 1 / 255.0);
+  EXPECT_GT(cv::norm(as_stored, linear, cv::NORM_INF), 0.2);
+  // A linear camera: untouched.
+  FootageOptions linear_options;
+  linear_options.transfer = "linear";
+  FootageReader plain(dir.path(), {"cam0", "cam1"}, linear_options);
+  ASSERT_TRUE(plain.Next(&frame));
+  const cv::Mat before = frame.images[0].clone();
+  plain.Linearize(&frame);
+  EXPECT_TRUE(SameImage(frame.images[0], before));
 }
 
 std::string ErrorOf(const fs::path& shot, const FootageOptions& options,

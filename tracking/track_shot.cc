@@ -24,6 +24,7 @@ namespace hmc {
 
 void TrackOptions::Register(OptionFields* fields) {
   footage.Register(fields);
+  footage.RegisterTransfer(fields);
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral and names are given");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
@@ -108,13 +109,21 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     names.push_back(hc.name);
     sizes.emplace_back(hc.camera.width, hc.camera.height);
   }
+  TrackOutput output;
   FootageReader reader(input.shot, names, options.footage, sizes);
   const int num_cameras = reader.num_cameras();
+  // The detector measures light: sRGB footage is linearised before it
+  // (docs/tracking.md, "Images"); which encoding each camera was read as
+  // is logged and goes to summary.json.
+  TrackSummary& summary = output.summary;
+  for (int c = 0; c < num_cameras; ++c) {
+    summary.transfer.push_back(reader.transfer(c));
+    summary.transfer_why.push_back(reader.transfer_why(c));
+    spdlog::info("track: {} read as {} ({})", names[c], reader.transfer(c), reader.transfer_why(c));
+  }
   if (!input.overlay_dir.empty()) EnsureDirectory(input.overlay_dir);
   if (!input.out.parent_path().empty()) EnsureDirectory(input.out.parent_path());
 
-  TrackOutput output;
-  TrackSummary& summary = output.summary;
   MarkerTracker tracker(rig, layout, options.tracker);
   nlohmann::json frames_json = nlohmann::json::array();
   std::vector<double> dot_size(num_cameras, options.detect.dot_size_px);
@@ -124,7 +133,8 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
     auto frame = std::make_unique<FootageFrame>();
-    if (!reader.Next(frame.get())) frame.reset();
+    if (!reader.Next(frame.get())) return std::unique_ptr<FootageFrame>();
+    reader.Linearize(frame.get());
     return frame;
   };
   std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
@@ -247,6 +257,9 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   j["stage"] = "track";
   j["reference_frame"] = summary.reference_frame;
   j["dot_size_px"] = summary.dot_size_px;
+  for (int c = 0; c < num_cameras; ++c) {
+    j["transfer"][names[c]] = {{"read_as", summary.transfer[c]}, {"why", summary.transfer_why[c]}};
+  }
   j["labelling"] = {{"ok", summary.labelling.ok},
                     {"candidate_points", summary.labelling.candidate_points},
                     {"inliers", summary.labelling.inliers},

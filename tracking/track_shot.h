@@ -45,6 +45,9 @@ struct TrackSummary {
   int skipped_views = 0;      // camera images that failed to decode
   int reference_frame = 0;    // the frame labelled
   std::vector<double> dot_size_px;  // per camera, used by the detector
+  // Per camera: the encoding its values were read as ("srgb", "linear")
+  // and why (FootageReader::transfer_why).
+  std::vector<std::string> transfer, transfer_why;
   ReferenceLabelling labelling;
   double mean_detections = 0;  // per view
   double mean_named = 0;       // per view
