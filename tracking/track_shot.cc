@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <map>
 
@@ -59,6 +60,30 @@ std::string TrackSummary::BriefReport() const {
 }
 
 namespace {
+
+// Exposure changing over the shot (auto-exposure, a light dimming): the
+// linear frame scaled back to the reference frame's level (its mean), into
+// 16 bits, when the two differ by more than 3 %. In linear light an
+// exposure change is a gain; undone, the detector's absolute thresholds
+// (min_step, in fractions of full scale) and the optical flow's
+// brightness constancy hold as at the reference frame
+// (docs/tracking.md, "Images"). Returns the gain applied (1: none).
+double MatchExposure(cv::Mat* image, double reference_level) {
+  if (image->empty() || !(reference_level > 0)) return 1;
+  const double full = image->depth() == CV_16U ? 65535.0 : 255.0;
+  const double level = cv::mean(*image)[0] / full;
+  if (!(level > 0)) return 1;
+  const double gain = reference_level / level;
+  if (std::abs(gain - 1) <= 0.03) return 1;
+  cv::Mat scaled;
+  image->convertTo(scaled, CV_16U, gain * 65535.0 / full);
+  *image = scaled;
+  return gain;
+}
+
+double ExposureLevel(const cv::Mat& image) {
+  return cv::mean(image)[0] / (image.depth() == CV_16U ? 65535.0 : 255.0);
+}
 
 // The named dots drawn on a fisheye frame (--overlay).
 cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
@@ -127,6 +152,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   MarkerTracker tracker(rig, layout, options.tracker);
   nlohmann::json frames_json = nlohmann::json::array();
   std::vector<double> dot_size(num_cameras, options.detect.dot_size_px);
+  std::vector<double> reference_level(num_cameras, 0);  // mean linear level, per camera
   bool started = false;
   int64_t detections_total = 0, named_total = 0, views = 0;
   Progress progress("track", reader.num_frames());
@@ -162,6 +188,14 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                           "or check --detect.polarity)",
                           frame->frame);
         }
+      }
+    }
+    if (!started) {
+      for (int c = 0; c < num_cameras; ++c) reference_level[c] = ExposureLevel(frame->images[c]);
+    } else {
+      for (int c = 0; c < num_cameras; ++c) {
+        const double gain = MatchExposure(&frame->images[c], reference_level[c]);
+        if (gain != 1) ++summary.exposure_matched_views;
       }
     }
     std::vector<std::vector<DotDetection>> detections(num_cameras);
@@ -276,6 +310,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                   {"mean_named", summary.mean_named},
                   {"reacquired", summary.reacquired},
                   {"swaps_caught", summary.swaps_caught},
+                  {"exposure_matched_views", summary.exposure_matched_views},
                   {"rows", summary.rows},
                   {"seconds", summary.seconds}};
   if (!input.diagnostics.empty()) {

@@ -53,6 +53,9 @@ struct TrackSummary {
   double mean_named = 0;       // per view
   int reacquired = 0;
   int swaps_caught = 0;
+  // Views whose exposure was scaled back to the reference frame's (their
+  // mean level more than 3 % off it).
+  int exposure_matched_views = 0;
   int64_t rows = 0;
   double seconds = 0;
   // The actor's markers named in no view of the shot (hidden all along,
