@@ -565,7 +565,7 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
       transfer = impl_->sources[c]->StatedTransfer(&why);
       if (transfer.empty()) {
         transfer = "linear";
-        why += ": assumed linear (set footage.transfer srgb for sRGB or BT.709 footage)";
+        why += "; assumed linear: set footage.transfer srgb for sRGB or BT.709 footage";
       }
     } else {
       why = "footage.transfer " + transfer;
