@@ -150,7 +150,8 @@ class CameraSource {
 // A folder of numbered images. Frames are named by file number: the
 // reader numbers every folder of the shot from the smallest first number
 // among them (SetBase), so a missing first file is a missing frame of that
-// camera, not a shift of all its frames (docs/formats.md, "Footage input").
+// camera, not a shift of all its frames, and a plate's own numbers are its
+// frames' (docs/formats.md, "Footage input").
 class ImageFolderSource : public CameraSource {
  public:
   explicit ImageFolderSource(const fs::path& dir) : dir_(dir) {
@@ -175,12 +176,14 @@ class ImageFolderSource : public CameraSource {
     }
   }
   long long first_number() const { return numbered_.begin()->first; }
-  // Numbers the frames (file number - base + 1) and decides the sequence's
+  // Numbers the frames (file number - base + first_frame) and decides the sequence's
   // image size from the headers of its first files: the size most of the
   // first three share (the expected one when one of them has it), so one
   // odd first file is a bad frame, not the size of the sequence.
-  void SetBase(long long base, const cv::Size& expected) {
-    for (const auto& [n, path] : numbered_) files_.emplace(static_cast<int>(n - base + 1), path);
+  void SetBase(long long base, long long first_frame, const cv::Size& expected) {
+    for (const auto& [n, path] : numbered_) {
+      files_.emplace(static_cast<int>(n - base + first_frame), path);
+    }
     std::vector<cv::Size> sizes;
     std::string first_error;
     for (auto it = files_.begin(); it != files_.end() && sizes.size() < 3; ++it) {
@@ -585,15 +588,23 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
   }
   long long base = LLONG_MAX;
   for (const auto& [c, folder] : folders) base = std::min(base, folder->first_number());
+  // The shot's first frame: the plate's own first number when every camera
+  // is an image folder, so a sequence 1001-1012 is frames 1001-1012 in
+  // every file hmc writes (issue 44, item 4); 1 for a sequence numbered
+  // from 0 (hmc's frames start at 1) and beside a video (whose frames are
+  // 1, 2, ...).
+  const long long first_frame =
+      folders.size() == impl_->sources.size() ? std::max(base, 1LL) : 1;
   for (const auto& [c, folder] : folders) {
-    folder->SetBase(base, c < expected_sizes.size() ? expected_sizes[c] : cv::Size());
+    folder->SetBase(base, first_frame,
+                    c < expected_sizes.size() ? expected_sizes[c] : cv::Size());
     if (folder->first_number() != base) {
       impl_->warnings.push_back(fmt::format(
           "{}'s first image file is number {}, the shot's first is {}: frames are paired by "
           "file number, so {} starts at frame {} (if its files are numbered differently, "
           "pair them with offset1)",
           camera_names[c], folder->first_number(), base, camera_names[c],
-          folder->first_number() - base + 1));
+          folder->first_number() - base + first_frame));
     } else if (folders.size() < impl_->sources.size() && base > 1) {
       impl_->warnings.push_back(fmt::format(
           "{}'s first image file is number {}: it is frame 1, paired with the video's first "

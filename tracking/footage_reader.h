@@ -9,12 +9,13 @@
 // bit, grey or colour). `FootageOptions::cam0` / `cam1` override the
 // convention with an explicit path.
 //
-// Frame numbers start at 1: a video's n-th frame (by its timestamp) is frame
-// n; an image sequence's frame is its file number minus the shot's first
-// file number (the smallest among its image folders) plus 1, so shots
-// numbered from 0 or from 1 read the same, a missing file is a missing
-// frame, and the cameras' files pair by number even when one camera's
-// first file is missing (warned). Hidden files (macOS `._*`) are not
+// Frame numbers: a video's n-th frame (by its timestamp) is frame n; an
+// image sequence's frame is its file number (the plate's own: 1001-1012
+// are frames 1001-1012), except that a shot numbered from 0 is read from
+// 1 (frame = file number + 1) and an image folder beside a video is
+// numbered from 1 like the video. The cameras' files pair by number (the
+// shot's first number is the smallest among its image folders), so a
+// missing file is a missing frame, even a camera's first (warned). Hidden files (macOS `._*`) are not
 // frames. Each file's header is checked against the sequence's size before
 // it is decoded. cam1's frame f + offset1 pairs with cam0's frame f; frames
 // are reported in cam0's numbering.

@@ -339,6 +339,44 @@ TEST(FootageReaderTest, SixteenBitAndColourImagesBecomeGreyOfTheirDepth) {
   EXPECT_LT(cv::norm(a, b, cv::NORM_INF), 1e-6);
 }
 
+// A plate's own frame numbers are its frames' (issue 44, item 4): a
+// sequence 1001-1012 is frames 1001-1012, paired by number, with a gap
+// where a file is missing and --frames in the plate's numbers; beside a
+// video the folder is numbered from 1 like the video.
+TEST(FootageReaderTest, APlatesOwnFrameNumbersAreItsFrames) {
+  TempDir dir;
+  WriteFolder(dir.path() / "cam0", 0, 1001, 12, {5});
+  WriteFolder(dir.path() / "cam1", 1, 1001, 12);
+  {
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+    EXPECT_EQ(reader.first_frame(), 1001);
+    EXPECT_EQ(reader.last_frame(), 1012);
+    const std::vector<FootageFrame> frames = ReadAll(reader);
+    ASSERT_EQ(frames.size(), 12u);
+    for (int i = 0; i < 12; ++i) {
+      EXPECT_EQ(frames[i].frame, 1001 + i);
+      EXPECT_EQ(frames[i].complete(), i != 4) << frames[i].frame;
+      if (i != 4) {
+        EXPECT_TRUE(SameImage(frames[i].images[0], Pattern(0, i + 1)));
+      }
+      EXPECT_TRUE(SameImage(frames[i].images[1], Pattern(1, i + 1)));
+    }
+  }
+  FootageOptions range;
+  range.frames = "1003:1004";
+  FootageReader ranged(dir.path(), {"cam0", "cam1"}, range);
+  const std::vector<FootageFrame> two = ReadAll(ranged);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].frame, 1003);
+  EXPECT_TRUE(SameImage(two[0].images[1], Pattern(1, 3)));
+  // Beside a video: numbered from 1, as the video's frames are.
+  fs::remove_all(dir.path() / "cam0");
+  WriteVideo(dir.path() / "cam0.mkv", 0, 12);
+  FootageReader mixed(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  EXPECT_EQ(mixed.first_frame(), 1);
+  EXPECT_EQ(mixed.last_frame(), 12);
+}
+
 // A PNG chunk (length, type, data, CRC-32 of type and data) inserted after
 // IHDR, as a camera's encoder writes its colour-space chunks.
 void InsertPngChunk(const fs::path& path, const std::string& type, const std::string& data) {
