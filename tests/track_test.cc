@@ -5,6 +5,7 @@
 // head, small dots) is scripts/measure_tracking (docs/tracking.md).
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -235,6 +236,25 @@ TEST_F(TrackTest, ACorruptFrameIsSkippedAndTrackingGoesOn) {
   for (int frame : {4, 5, 6}) EXPECT_GE(cam1_rows[frame], 0.9 * cam1_rows[2]) << "frame " << frame;
 }
 
+// A copy of a PNG shot's frames (and its calibration.yaml), each frame's
+// image passed through `change(image, frame)`.
+void CopyShotFrames(const fs::path& shot, const fs::path& copy,
+                    const std::function<cv::Mat(const cv::Mat&, int)>& change) {
+  fs::remove_all(copy);
+  fs::create_directories(copy);
+  fs::copy_file(shot / "calibration.yaml", copy / "calibration.yaml");
+  for (const char* camera : {"cam0", "cam1"}) {
+    fs::create_directories(copy / camera);
+    for (const auto& entry : fs::directory_iterator(shot / camera)) {
+      const cv::Mat image = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
+      const std::string stem = entry.path().stem().string();
+      const int frame = std::stoi(stem.substr(stem.size() - 6));
+      ASSERT_TRUE(cv::imwrite((copy / camera / entry.path().filename()).string(),
+                              change(image, frame)));
+    }
+  }
+}
+
 // sRGB-encoded PNGs (which say so with an sRGB chunk) are linearised before
 // the detector (footage.transfer auto): tracked as well as the same shot
 // rendered with linear values. Read as linear values (the reading before
@@ -290,19 +310,13 @@ TEST_F(TrackTest, SixteenBitAndColourFramesGiveTheTracksOfTheEightBitGrey) {
   ASSERT_GT(grey8.size(), 100u);
   for (const std::string kind : {"grey16", "colour8", "colour16"}) {
     const fs::path copy = dir_ / ("shot_depths_" + kind);
-    fs::remove_all(copy);
-    fs::create_directories(copy);
-    fs::copy_file(shot / "calibration.yaml", copy / "calibration.yaml");
-    for (const char* camera : {"cam0", "cam1"}) {
-      fs::create_directories(copy / camera);
-      for (const auto& entry : fs::directory_iterator(shot / camera)) {
-        cv::Mat image = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
-        ASSERT_EQ(image.type(), CV_8UC1);
-        if (kind != "grey16") cv::cvtColor(image, image, cv::COLOR_GRAY2BGR);
-        if (kind != "colour8") image.convertTo(image, CV_16U, 257);
-        ASSERT_TRUE(cv::imwrite((copy / camera / entry.path().filename()).string(), image));
-      }
-    }
+    CopyShotFrames(shot, copy, [&](const cv::Mat& grey8_image, int) {
+      EXPECT_EQ(grey8_image.type(), CV_8UC1);
+      cv::Mat image = grey8_image;
+      if (kind != "grey16") cv::cvtColor(image, image, cv::COLOR_GRAY2BGR);
+      if (kind != "colour8") image.convertTo(image, CV_16U, 257);
+      return image;
+    });
     const fs::path out = dir_ / ("track_depths_" + kind) / "tracks_2d.csv";
     const CliResult r = Track(copy, out);
     ASSERT_EQ(r.exit_code, 0) << kind << ": " << r.err;
@@ -334,22 +348,13 @@ TEST_F(TrackTest, ExposureDriftingOverTheShotIsTracked) {
   std::printf("original: %s\n", original.BriefReport().c_str());
   for (const double gain : {0.45, 1.5}) {
     const fs::path copy = dir_ / fmt::format("shot_exposure_{}", gain);
-    fs::remove_all(copy);
-    fs::create_directories(copy);
-    fs::copy_file(shot / "calibration.yaml", copy / "calibration.yaml");
-    for (const char* camera : {"cam0", "cam1"}) {
-      fs::create_directories(copy / camera);
-      for (const auto& entry : fs::directory_iterator(shot / camera)) {
-        const cv::Mat image = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
-        const std::string stem = entry.path().stem().string();
-        const int frame = std::stoi(stem.substr(stem.size() - 6));
-        // Frame 1 (the reference) at 1, the last frame at `gain`.
-        const double g = 1 + (gain - 1) * (frame - 1) / 5.0;
-        cv::Mat scaled;
-        image.convertTo(scaled, CV_8U, g);  // rounded, saturated at 255
-        ASSERT_TRUE(cv::imwrite((copy / camera / entry.path().filename()).string(), scaled));
-      }
-    }
+    CopyShotFrames(shot, copy, [&](const cv::Mat& image, int frame) {
+      // Frame 1 (the reference) at 1, the last frame at `gain`.
+      const double g = 1 + (gain - 1) * (frame - 1) / 5.0;
+      cv::Mat scaled;
+      image.convertTo(scaled, CV_8U, g);  // rounded, saturated at 255
+      return scaled;
+    });
     const fs::path out = dir_ / fmt::format("track_exposure_{}", gain) / "tracks_2d.csv";
     const CliResult r = Track(copy, out);
     ASSERT_EQ(r.exit_code, 0) << r.err;
