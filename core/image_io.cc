@@ -167,10 +167,6 @@ uint32_t Endian(const unsigned char* p, int bytes, bool little) {
   return v;
 }
 
-}  // namespace
-
-namespace {
-
 // The colour-space chunks of a PNG, which come before its first IDAT: in
 // the order of precedence of the PNG specification, sRGB, then iCCP (any
 // display profile is near sRGB's curve; one named linear is not), then

@@ -68,21 +68,21 @@ namespace {
 // (min_step, in fractions of full scale) and the optical flow's
 // brightness constancy hold as at the reference frame
 // (docs/tracking.md, "Images"). Returns the gain applied (1: none).
+double FullScale(const cv::Mat& image) { return image.depth() == CV_16U ? 65535.0 : 255.0; }
+
+// The mean level of a frame, as a fraction of full scale.
+double ExposureLevel(const cv::Mat& image) { return cv::mean(image)[0] / FullScale(image); }
+
 double MatchExposure(cv::Mat* image, double reference_level) {
   if (image->empty() || !(reference_level > 0)) return 1;
-  const double full = image->depth() == CV_16U ? 65535.0 : 255.0;
-  const double level = cv::mean(*image)[0] / full;
+  const double level = ExposureLevel(*image);
   if (!(level > 0)) return 1;
   const double gain = reference_level / level;
   if (std::abs(gain - 1) <= 0.03) return 1;
   cv::Mat scaled;
-  image->convertTo(scaled, CV_16U, gain * 65535.0 / full);
+  image->convertTo(scaled, CV_16U, gain * 65535.0 / FullScale(*image));
   *image = scaled;
   return gain;
-}
-
-double ExposureLevel(const cv::Mat& image) {
-  return cv::mean(image)[0] / (image.depth() == CV_16U ? 65535.0 : 255.0);
 }
 
 // The named dots drawn on a fisheye frame (--overlay).
