@@ -4,6 +4,8 @@
 #include <chrono>
 #include <climits>
 #include <cmath>
+#include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -273,6 +275,73 @@ class ImageFolderSource : public CameraSource {
   cv::Size size_;
 };
 
+// The transfer characteristic of an ISO BMFF video (.mp4, .mov): the
+// `colr` box ('nclx' or QuickTime's 'nclc') of its first visual sample
+// entry, under moov/trak/mdia/minf/stbl/stsd; its codes are those of
+// ITU-T H.273. 0 when absent. Only box headers are read outside `moov`
+// (which may sit at the end of a large file).
+int IsoBmffTransferCode(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return 0;
+  auto be = [](const unsigned char* p, int n) {
+    uint64_t v = 0;
+    for (int i = 0; i < n; ++i) v = (v << 8) | p[i];
+    return v;
+  };
+  // Top level: find moov by its header.
+  std::vector<unsigned char> moov;
+  for (uint64_t at = 0;;) {
+    unsigned char h[16];
+    in.seekg(static_cast<std::streamoff>(at));
+    if (!in.read(reinterpret_cast<char*>(h), 8)) return 0;
+    uint64_t size = be(h, 4);
+    uint64_t header = 8;
+    if (size == 1) {
+      if (!in.read(reinterpret_cast<char*>(h + 8), 8)) return 0;
+      size = be(h + 8, 8);
+      header = 16;
+    }
+    if (size < header) return 0;  // 0 = "to the end of the file": not moov's way
+    if (std::string(h + 4, h + 8) == "moov") {
+      if (size > (64u << 20)) return 0;
+      moov.resize(size - header);
+      if (!in.read(reinterpret_cast<char*>(moov.data()), static_cast<std::streamsize>(moov.size()))) {
+        return 0;
+      }
+      break;
+    }
+    at += size;
+  }
+  // Inside moov: descend into the containers on the path to colr. A visual
+  // sample entry's children follow its 78 bytes of fields.
+  std::function<int(size_t, size_t, int)> walk = [&](size_t begin, size_t end, int depth) {
+    for (size_t at = begin; at + 8 <= end;) {
+      const uint64_t size = be(&moov[at], 4);
+      if (size < 8 || at + size > end) return 0;
+      const std::string type(moov.begin() + at + 4, moov.begin() + at + 8);
+      const size_t body = at + 8;
+      if (type == "colr" && size >= 18) {
+        const std::string kind(moov.begin() + body, moov.begin() + body + 4);
+        if (kind == "nclx" || kind == "nclc") return static_cast<int>(be(&moov[body + 6], 2));
+      }
+      int found = 0;
+      if (depth < 8) {
+        if (type == "trak" || type == "mdia" || type == "minf" || type == "stbl") {
+          found = walk(body, at + size, depth + 1);
+        } else if (type == "stsd" && size >= 16) {
+          found = walk(body + 8, at + size, depth + 1);  // version, flags, entry count
+        } else if (depth == 5 && size >= 8 + 78) {
+          found = walk(body + 78, at + size, depth + 1);  // a visual sample entry
+        }
+      }
+      if (found) return found;
+      at += size;
+    }
+    return 0;
+  };
+  return walk(0, moov.size(), 0);
+}
+
 // A video through FFmpeg. Frames are numbered by their timestamps, so a
 // frame FFmpeg cannot decode, and skips, leaves a gap instead of shifting
 // every later frame.
@@ -309,11 +378,11 @@ class VideoSource : public CameraSource {
     return std::max(declared_frames_ > 0 ? declared_frames_ : INT_MAX - 1, pending_frame_);
   }
   double fps() const override { return fps_; }
-  // OpenCV 4.6 does not expose the stream's colour transfer
-  // (color_trc), so a video does not say.
+  // OpenCV 4.6 does not expose the stream's colour transfer (color_trc):
+  // an .mp4 or .mov says it in its colr box, read here; other containers
+  // (.mkv, .avi, ...) are not read.
   std::string StatedTransfer(std::string* why) const override {
-    *why = "a video's colour transfer is not readable through OpenCV";
-    return "";
+    return VideoTransfer(path_, why);
   }
   cv::Mat Read(int frame, std::string* error) override {
     while (!ended_ && pending_frame_ < frame) Advance();
@@ -777,6 +846,30 @@ std::vector<uint16_t> SrgbTable(int levels) {
 }
 
 }  // namespace
+
+std::string VideoTransfer(const fs::path& path, std::string* why) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  if (ext != ".mp4" && ext != ".mov") {
+    *why = fmt::format("the colour transfer of a {} video is not read", ext);
+    return "";
+  }
+  const int code = IsoBmffTransferCode(path);
+  // H.273: 1 BT.709, 6 BT.601, 13 sRGB, 14/15 BT.2020 (the BT.709 curve);
+  // 8 linear; 2 unspecified.
+  if (code == 1 || code == 6 || code == 13 || code == 14 || code == 15) {
+    *why = fmt::format("{}'s colr box: transfer {}", path.filename().string(), code);
+    return "srgb";
+  }
+  if (code == 8) {
+    *why = fmt::format("{}'s colr box: transfer 8 (linear)", path.filename().string());
+    return "linear";
+  }
+  *why = code == 0 ? fmt::format("no colour transfer in {}'s colr box", path.filename().string())
+                   : fmt::format("{}'s colr box: transfer {}, a curve hmc does not invert",
+                                 path.filename().string(), code);
+  return "";
+}
 
 cv::Mat SrgbToLinear16(const cv::Mat& image) {
   static const std::vector<uint16_t> table8 = SrgbTable(256);

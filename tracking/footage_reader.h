@@ -136,6 +136,12 @@ class FootageReader {
   std::unique_ptr<Impl> impl_;
 };
 
+// What an .mp4 or .mov video says of its values' encoding (its colr box's
+// transfer characteristic, ITU-T H.273): "srgb" for BT.709, BT.601, sRGB
+// and BT.2020 (the BT.709 curve), "linear", or "" (not said, another
+// container, or a curve hmc does not invert); `why` says which.
+std::string VideoTransfer(const std::filesystem::path& path, std::string* why);
+
 // An sRGB-encoded grey image (8 or 16 bit) in linear light, 16-bit.
 cv::Mat SrgbToLinear16(const cv::Mat& image);
 

@@ -441,6 +441,51 @@ TEST(FootageReaderTest, TransferIsWhatThePngSaysOrTheOption) {
   }
 }
 
+// An ISO BMFF box: 32-bit size, type, body.
+std::string Box(const std::string& type, const std::string& body) {
+  return BigEndian4(static_cast<uint32_t>(8 + body.size())) + type + body;
+}
+
+// An .mp4/.mov's colr box names its transfer (H.273 codes): found under
+// moov/trak/mdia/minf/stbl/stsd/<sample entry>, wherever moov lies; the
+// BT.709 family is read as sRGB, 8 as linear, the rest as not said.
+TEST(FootageReaderTest, AVideosColrBoxGivesItsTransfer) {
+  TempDir dir;
+  auto write = [&](const std::string& name, const std::string& colr_kind, int transfer,
+                   bool moov_last) {
+    const std::string colr =
+        colr_kind.empty() ? ""
+                          : Box("colr", colr_kind + std::string("\0\1", 2) +
+                                            std::string(1, '\0') + static_cast<char>(transfer) +
+                                            std::string("\0\1", 2) +
+                                            (colr_kind == "nclx" ? std::string(1, '\0') : ""));
+    const std::string entry = Box("avc1", std::string(78, '\0') + Box("avcC", "xyz") + colr);
+    const std::string stsd = Box("stsd", std::string(7, '\0') + '\1' + entry);
+    const std::string moov = Box(
+        "moov", Box("mvhd", std::string(20, '\0')) +
+                    Box("trak", Box("mdia", Box("minf", Box("stbl", stsd)))));
+    const std::string mdat = Box("mdat", std::string(100, '\7'));
+    const std::string ftyp = Box("ftyp", "isom\0\0\2\0");
+    WriteFileAtomic(dir.path() / name, ftyp + (moov_last ? mdat + moov : moov + mdat));
+    return dir.path() / name;
+  };
+  std::string why;
+  EXPECT_EQ(VideoTransfer(write("a.mp4", "nclx", 1, false), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("b.mov", "nclc", 1, true), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("c.mp4", "nclx", 13, true), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("d.mp4", "nclx", 8, false), &why), "linear") << why;
+  EXPECT_EQ(VideoTransfer(write("e.mp4", "nclx", 2, false), &why), "") << why;
+  EXPECT_EQ(VideoTransfer(write("f.mp4", "nclx", 16, false), &why), "") << why;  // PQ
+  EXPECT_NE(why.find("does not invert"), std::string::npos) << why;
+  EXPECT_EQ(VideoTransfer(write("g.mp4", "", 0, false), &why), "") << why;
+  EXPECT_EQ(VideoTransfer(write("h.mkv", "nclx", 1, false), &why), "") << why;
+  // What OpenCV's writer makes says nothing: read as linear (auto).
+  WriteVideo(dir.path() / "cam0.mkv", 0, 2);
+  WriteVideo(dir.path() / "cam1.mkv", 1, 2);
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  EXPECT_EQ(reader.transfer(0), "linear") << reader.transfer_why(0);
+}
+
 // Linearize turns an sRGB camera's 8- or 16-bit values into linear light
 // (16-bit), within the encoding's quantisation; a linear camera's images
 // stay as they are.
