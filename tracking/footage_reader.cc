@@ -38,7 +38,8 @@ void FootageOptions::RegisterTransfer(OptionFields* fields) {
   fields->SetGroup("footage");
   fields->Add("transfer", &transfer,
               "encoding of the footage's values: srgb | linear | auto (as each camera's files "
-              "say: PNG sRGB/iCCP/gAMA, JPEG sRGB; linear where not stated, videos among them)");
+              "say: PNG sRGB/iCCP/gAMA, JPEG sRGB, an .mp4/.mov's colr box; linear where not "
+              "stated)");
   fields->SetGroup("");
 }
 

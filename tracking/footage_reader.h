@@ -44,8 +44,8 @@ struct FootageOptions {
   std::string frames;   // inclusive range "A:B" of frame numbers; "A:" or ":B" open ("" = all)
   int offset1 = 0;      // cam1 frame number = cam0 frame number + offset1 (frames)
   // The encoding of the footage's values: srgb | linear | auto (what each
-  // camera's files say: PNG sRGB/iCCP/gAMA chunks, JPEG; linear where
-  // nothing is said, videos among them). Applied by FootageReader::
+  // camera's files say: PNG sRGB/iCCP/gAMA chunks, JPEG, an .mp4/.mov's
+  // colr box; linear where nothing is said). Applied by FootageReader::
   // Linearize, which only the commands that measure light call.
   std::string transfer = "auto";
 
