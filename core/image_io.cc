@@ -32,7 +32,7 @@ std::vector<std::string> ExrChannelNames(int channels) {
 
 }  // namespace
 
-void WritePng(const std::filesystem::path& path, const cv::Mat& image) {
+void WritePng(const std::filesystem::path& path, const cv::Mat& image, bool declare_srgb) {
   if (image.empty()) ThrowInputError(path, 0, "cannot write an empty image");
   const int depth = image.depth();
   const int channels = image.channels();
@@ -46,6 +46,13 @@ void WritePng(const std::filesystem::path& path, const cv::Mat& image) {
   std::vector<uchar> bytes;
   if (!cv::imencode(".png", image, bytes)) {
     ThrowInputError(path, 0, "PNG encoding failed");
+  }
+  if (declare_srgb && bytes.size() > 33) {
+    // An sRGB chunk (rendering intent 0, perceptual) right after IHDR
+    // (8-byte signature + 25-byte IHDR chunk), where the PNG specification
+    // puts colour-space chunks; its CRC-32 over "sRGB\0" is 0xAECE1CE9.
+    static const uchar kSrgb[13] = {0, 0, 0, 1, 's', 'R', 'G', 'B', 0, 0xAE, 0xCE, 0x1C, 0xE9};
+    bytes.insert(bytes.begin() + 33, kSrgb, kSrgb + 13);
   }
   WriteFileAtomic(path, std::string_view(
                             reinterpret_cast<const char*>(bytes.data()),
@@ -160,6 +167,49 @@ uint32_t Endian(const unsigned char* p, int bytes, bool little) {
   return v;
 }
 
+// The colour-space chunks of a PNG, which come before its first IDAT: in
+// the order of precedence of the PNG specification, sRGB, then iCCP (any
+// display profile is near sRGB's curve; one named linear is not), then
+// gAMA (the encoding exponent: 0.45455 is sRGB's, 1 linear).
+void PngTransfer(const std::vector<unsigned char>& b, ImageHeader* h) {
+  std::string iccp;
+  double gamma = -1;
+  for (size_t at = 8; at + 8 <= b.size();) {
+    const size_t length = BigEndian(&b[at], 4);
+    const std::string type(b.begin() + at + 4, b.begin() + at + 8);
+    if (type == "IDAT" || type == "IEND" || length > b.size()) break;
+    const size_t data = at + 8;
+    if (type == "sRGB") {
+      h->transfer = "srgb";
+      h->transfer_why = "PNG sRGB chunk";
+      return;
+    }
+    if (type == "iCCP" && data + length <= b.size()) {
+      // The profile's name: Latin-1, NUL-terminated, first in the chunk.
+      size_t end = data;
+      while (end < data + length && b[end] != 0) ++end;
+      iccp.assign(b.begin() + data, b.begin() + end);
+      if (iccp.empty()) iccp = "(unnamed)";
+    }
+    if (type == "gAMA" && length == 4 && data + 4 <= b.size()) {
+      gamma = BigEndian(&b[data], 4) / 100000.0;
+    }
+    at = data + length + 4;
+  }
+  if (!iccp.empty()) {
+    std::string lower = iccp;
+    std::transform(lower.begin(), lower.end(), lower.begin(), ::tolower);
+    h->transfer = lower.find("linear") != std::string::npos ? "linear" : "srgb";
+    h->transfer_why = fmt::format("PNG iCCP profile '{}'", iccp);
+    return;
+  }
+  if (gamma > 0) {
+    // Between the two, the nearer one; hmc has no other curve.
+    h->transfer = gamma > 0.72 ? "linear" : "srgb";
+    h->transfer_why = fmt::format("PNG gAMA {:.5f}", gamma);
+  }
+}
+
 }  // namespace
 
 ImageHeader ReadImageHeader(const std::filesystem::path& path) {
@@ -185,6 +235,7 @@ ImageHeader ReadImageHeader(const std::filesystem::path& path) {
     }
     h.size = cv::Size(static_cast<int>(std::min<uint32_t>(BigEndian(&b[16], 4), INT32_MAX)),
                       static_cast<int>(std::min<uint32_t>(BigEndian(&b[20], 4), INT32_MAX)));
+    PngTransfer(b, &h);
     return h;
   }
   if (n >= 3 && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff) {
@@ -202,6 +253,8 @@ ImageHeader ReadImageHeader(const std::filesystem::path& path) {
           marker != 0xcc) {
         if (at + 9 > n) break;
         h.format = "JPEG";
+        h.transfer = "srgb";
+        h.transfer_why = "JPEG (sRGB by convention)";
         h.size = cv::Size(static_cast<int>(BigEndian(&b[at + 7], 2)),
                           static_cast<int>(BigEndian(&b[at + 5], 2)));
         return h;

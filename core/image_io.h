@@ -14,8 +14,11 @@ namespace hmc {
 // Writes an 8- or 16-bit image with 1 (grey), 3 (BGR) or 4 (BGRA)
 // channels as PNG. Lossless: ReadPng returns the same pixels.
 // Throws InputError naming `path` if the image is empty or of another type,
-// or the file cannot be written.
-void WritePng(const std::filesystem::path& path, const cv::Mat& image);
+// or the file cannot be written. With `declare_srgb` the file carries an
+// sRGB chunk (its values are sRGB-encoded, as a camera's PNG says so;
+// docs/formats.md, "Footage input").
+void WritePng(const std::filesystem::path& path, const cv::Mat& image,
+              bool declare_srgb = false);
 
 // Reads a PNG (or any format OpenCV decodes) unchanged: depth and channel
 // count as stored. Throws InputError naming `path` if it cannot.
@@ -25,10 +28,16 @@ cv::Mat ReadPng(const std::filesystem::path& path);
 // (a 20000 x 20000 PNG of zeros is 2 MB on disk and 2.4 GB decoded:
 // docs/reliability.md). `format` is "" when the file is none of PNG, JPEG
 // or TIFF, or its header is cut short; then `error` says why.
+// `transfer` is what the file says of its values' encoding: "srgb"
+// (PNG sRGB or iCCP chunk, a PNG gAMA near 1/2.2, any JPEG), "linear" (PNG
+// gAMA near 1, an iCCP profile named linear) or "" (not stated: a PNG
+// without those chunks, TIFF); `transfer_why` names the evidence.
 struct ImageHeader {
   std::string format;  // "PNG", "JPEG", "TIFF"
   cv::Size size;
   std::string error;
+  std::string transfer;      // "srgb", "linear" or "" (not stated)
+  std::string transfer_why;  // "PNG sRGB chunk", "PNG gAMA 0.45455", ...
 };
 ImageHeader ReadImageHeader(const std::filesystem::path& path);
 

@@ -53,6 +53,26 @@ TEST_F(ImageIoTest, PngRoundTripIsExact) {
   EXPECT_EQ(cv::norm(ReadPng(dir_ / "roi.png"), roi, cv::NORM_INF), 0);
 }
 
+// A PNG written with declare_srgb says so in its header (an sRGB chunk,
+// which libpng accepts: the pixels read back exact); one without says
+// nothing; a JPEG is sRGB by convention.
+TEST_F(ImageIoTest, PngDeclaresSrgbWhenAsked) {
+  unsigned seed = 3;
+  for (const int type : {CV_8UC1, CV_16UC1, CV_8UC3}) {
+    const cv::Mat image = RandomImage(21, 34, type, seed++);
+    WritePng(dir_ / "srgb.png", image, true);
+    WritePng(dir_ / "plain.png", image);
+    const ImageHeader srgb = ReadImageHeader(dir_ / "srgb.png");
+    EXPECT_EQ(srgb.format, "PNG");
+    EXPECT_EQ(srgb.size, image.size());
+    EXPECT_EQ(srgb.transfer, "srgb") << srgb.transfer_why;
+    EXPECT_EQ(ReadImageHeader(dir_ / "plain.png").transfer, "");
+    EXPECT_EQ(cv::norm(ReadPng(dir_ / "srgb.png"), image, cv::NORM_INF), 0);
+  }
+  ASSERT_TRUE(cv::imwrite((dir_ / "f.jpg").string(), RandomImage(8, 8, CV_8UC1, 1)));
+  EXPECT_EQ(ReadImageHeader(dir_ / "f.jpg").transfer, "srgb");
+}
+
 TEST_F(ImageIoTest, PngRejectsBadInputAndLeavesNoFile) {
   EXPECT_THROW(WritePng(dir_ / "empty.png", cv::Mat()), InputError);
   EXPECT_THROW(WritePng(dir_ / "float.png", cv::Mat(4, 4, CV_32FC1)),

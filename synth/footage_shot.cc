@@ -97,12 +97,13 @@ double FaceFrontZ(const TriMesh& neutral, double y) {
 
 // Writes one camera's frames: a lossless FFV1 .mkv or a lossy H.264 .mp4
 // (FFmpeg's default quality, with its compression artefacts; both written
-// under a temporary name and renamed when complete) or a PNG folder.
+// under a temporary name and renamed when complete) or a PNG folder (with
+// an sRGB chunk when the values are sRGB-encoded, as a camera's PNGs say).
 class FrameSink {
  public:
   FrameSink(const std::filesystem::path& out_dir, const std::string& name,
-            const std::string& kind, double fps, cv::Size size)
-      : kind_(kind) {
+            const std::string& kind, double fps, cv::Size size, bool srgb)
+      : kind_(kind), srgb_(srgb) {
     if (kind == "png") {
       dir_ = out_dir / name;
       EnsureDirectory(dir_);
@@ -122,7 +123,7 @@ class FrameSink {
   }
   void Write(int frame, const cv::Mat& image) {
     if (kind_ == "png") {
-      WritePng(dir_ / fmt::format("frame_{:06d}.png", frame), image);
+      WritePng(dir_ / fmt::format("frame_{:06d}.png", frame), image, srgb_);
     } else {
       writer_.write(image);
     }
@@ -137,6 +138,7 @@ class FrameSink {
 
  private:
   std::string kind_;
+  bool srgb_ = false;
   std::filesystem::path dir_, final_, temp_;
   cv::VideoWriter writer_;
 };
@@ -259,7 +261,8 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   sinks.reserve(num_cameras);
   for (const HelmetCamera& hc : render ? rig.cameras : std::vector<HelmetCamera>()) {
     sinks.emplace_back(out_dir, hc.name, options.video, perf.fps,
-                       cv::Size(hc.camera.width, hc.camera.height));
+                       cv::Size(hc.camera.width, hc.camera.height),
+                       options.render.transfer == "srgb");
   }
   std::set<int> contact;
   for (int i = 0; render && i < options.contact_frames; ++i) {

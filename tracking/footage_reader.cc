@@ -4,6 +4,8 @@
 #include <chrono>
 #include <climits>
 #include <cmath>
+#include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -32,8 +34,21 @@ void FootageOptions::Register(OptionFields* fields) {
   fields->Add("offset1", &offset1, "cam1 frame = cam0 frame + offset1 (frames)");
 }
 
+void FootageOptions::RegisterTransfer(OptionFields* fields) {
+  fields->SetGroup("footage");
+  fields->Add("transfer", &transfer,
+              "encoding of the footage's values: srgb | linear | auto (as each camera's files "
+              "say: PNG sRGB/iCCP/gAMA, JPEG sRGB, an .mp4/.mov's colr box; linear where not "
+              "stated)");
+  fields->SetGroup("");
+}
+
 bool FootageOptions::Check() const {
   bool ok = true;
+  if (transfer != "srgb" && transfer != "linear" && transfer != "auto") {
+    spdlog::error("footage options: transfer must be srgb, linear or auto, got '{}'", transfer);
+    ok = false;
+  }
   try {
     ParseFrameRange(frames, "frames");
   } catch (const InputError& e) {
@@ -127,12 +142,19 @@ class CameraSource {
   virtual std::vector<std::string> warnings() const { return {}; }
   // Frames per second as the source declares it (0: unknown, an image folder).
   virtual double fps() const { return 0; }
+  // What the source says of its values' encoding: "srgb", "linear" or ""
+  // (not stated), and where it says so.
+  virtual std::string StatedTransfer(std::string* why) const {
+    *why = "not stated";
+    return "";
+  }
 };
 
 // A folder of numbered images. Frames are named by file number: the
 // reader numbers every folder of the shot from the smallest first number
 // among them (SetBase), so a missing first file is a missing frame of that
-// camera, not a shift of all its frames (docs/formats.md, "Footage input").
+// camera, not a shift of all its frames, and a plate's own numbers are its
+// frames' (docs/formats.md, "Footage input").
 class ImageFolderSource : public CameraSource {
  public:
   explicit ImageFolderSource(const fs::path& dir) : dir_(dir) {
@@ -157,12 +179,14 @@ class ImageFolderSource : public CameraSource {
     }
   }
   long long first_number() const { return numbered_.begin()->first; }
-  // Numbers the frames (file number - base + 1) and decides the sequence's
+  // Numbers the frames (file number - base + first_frame) and decides the sequence's
   // image size from the headers of its first files: the size most of the
   // first three share (the expected one when one of them has it), so one
   // odd first file is a bad frame, not the size of the sequence.
-  void SetBase(long long base, const cv::Size& expected) {
-    for (const auto& [n, path] : numbered_) files_.emplace(static_cast<int>(n - base + 1), path);
+  void SetBase(long long base, long long first_frame, const cv::Size& expected) {
+    for (const auto& [n, path] : numbered_) {
+      files_.emplace(static_cast<int>(n - base + first_frame), path);
+    }
     std::vector<cv::Size> sizes;
     std::string first_error;
     for (auto it = files_.begin(); it != files_.end() && sizes.size() < 3; ++it) {
@@ -189,6 +213,14 @@ class ImageFolderSource : public CameraSource {
     }
   }
   cv::Size size() const override { return size_; }
+  // The first file's header speaks for the sequence.
+  std::string StatedTransfer(std::string* why) const override {
+    const fs::path& file = numbered_.begin()->second;
+    const ImageHeader h = ReadImageHeader(file);
+    *why = h.transfer.empty() ? fmt::format("not stated in {}", file.filename().string())
+                              : fmt::format("{} in {}", h.transfer_why, file.filename().string());
+    return h.transfer;
+  }
   int first() const override { return files_.begin()->first; }
   int last() const override { return files_.rbegin()->first; }
   cv::Mat Read(int frame, std::string* error) override {
@@ -244,6 +276,73 @@ class ImageFolderSource : public CameraSource {
   cv::Size size_;
 };
 
+// The transfer characteristic of an ISO BMFF video (.mp4, .mov): the
+// `colr` box ('nclx' or QuickTime's 'nclc') of its first visual sample
+// entry, under moov/trak/mdia/minf/stbl/stsd; its codes are those of
+// ITU-T H.273. 0 when absent. Only box headers are read outside `moov`
+// (which may sit at the end of a large file).
+int IsoBmffTransferCode(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return 0;
+  auto be = [](const unsigned char* p, int n) {
+    uint64_t v = 0;
+    for (int i = 0; i < n; ++i) v = (v << 8) | p[i];
+    return v;
+  };
+  // Top level: find moov by its header.
+  std::vector<unsigned char> moov;
+  for (uint64_t at = 0;;) {
+    unsigned char h[16];
+    in.seekg(static_cast<std::streamoff>(at));
+    if (!in.read(reinterpret_cast<char*>(h), 8)) return 0;
+    uint64_t size = be(h, 4);
+    uint64_t header = 8;
+    if (size == 1) {
+      if (!in.read(reinterpret_cast<char*>(h + 8), 8)) return 0;
+      size = be(h + 8, 8);
+      header = 16;
+    }
+    if (size < header) return 0;  // 0 = "to the end of the file": not moov's way
+    if (std::string(h + 4, h + 8) == "moov") {
+      if (size > (64u << 20)) return 0;
+      moov.resize(size - header);
+      if (!in.read(reinterpret_cast<char*>(moov.data()), static_cast<std::streamsize>(moov.size()))) {
+        return 0;
+      }
+      break;
+    }
+    at += size;
+  }
+  // Inside moov: descend into the containers on the path to colr. A visual
+  // sample entry's children follow its 78 bytes of fields.
+  std::function<int(size_t, size_t, int)> walk = [&](size_t begin, size_t end, int depth) {
+    for (size_t at = begin; at + 8 <= end;) {
+      const uint64_t size = be(&moov[at], 4);
+      if (size < 8 || at + size > end) return 0;
+      const std::string type(moov.begin() + at + 4, moov.begin() + at + 8);
+      const size_t body = at + 8;
+      if (type == "colr" && size >= 18) {
+        const std::string kind(moov.begin() + body, moov.begin() + body + 4);
+        if (kind == "nclx" || kind == "nclc") return static_cast<int>(be(&moov[body + 6], 2));
+      }
+      int found = 0;
+      if (depth < 8) {
+        if (type == "trak" || type == "mdia" || type == "minf" || type == "stbl") {
+          found = walk(body, at + size, depth + 1);
+        } else if (type == "stsd" && size >= 16) {
+          found = walk(body + 8, at + size, depth + 1);  // version, flags, entry count
+        } else if (depth == 5 && size >= 8 + 78) {
+          found = walk(body + 78, at + size, depth + 1);  // a visual sample entry
+        }
+      }
+      if (found) return found;
+      at += size;
+    }
+    return 0;
+  };
+  return walk(0, moov.size(), 0);
+}
+
 // A video through FFmpeg. Frames are numbered by their timestamps, so a
 // frame FFmpeg cannot decode, and skips, leaves a gap instead of shifting
 // every later frame.
@@ -280,6 +379,12 @@ class VideoSource : public CameraSource {
     return std::max(declared_frames_ > 0 ? declared_frames_ : INT_MAX - 1, pending_frame_);
   }
   double fps() const override { return fps_; }
+  // OpenCV 4.6 does not expose the stream's colour transfer (color_trc):
+  // an .mp4 or .mov says it in its colr box, read here; other containers
+  // (.mkv, .avi, ...) are not read.
+  std::string StatedTransfer(std::string* why) const override {
+    return VideoTransfer(path_, why);
+  }
   cv::Mat Read(int frame, std::string* error) override {
     while (!ended_ && pending_frame_ < frame) Advance();
     if (!ended_ && pending_frame_ == frame) {
@@ -502,6 +607,7 @@ struct FootageReader::Impl {
   std::vector<fs::path> paths;
   std::vector<std::unique_ptr<CameraSource>> sources;
   std::vector<int> offsets;  // camera frame = cam0 frame + offset
+  std::vector<std::string> transfers, transfer_whys;  // per camera
   std::vector<std::string> warnings;
   int first = 1;
   int last = 0;
@@ -524,6 +630,22 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
     impl_->sources.push_back(OpenSource(impl_->paths.back()));
     impl_->offsets.push_back(c == 1 ? options.offset1 : 0);
   }
+  // The values' encoding per camera (docs/formats.md, "Footage input").
+  for (size_t c = 0; c < impl_->sources.size(); ++c) {
+    std::string why;
+    std::string transfer = options.transfer;
+    if (transfer == "auto") {
+      transfer = impl_->sources[c]->StatedTransfer(&why);
+      if (transfer.empty()) {
+        transfer = "linear";
+        why += "; assumed linear: set footage.transfer srgb for sRGB or BT.709 footage";
+      }
+    } else {
+      why = "footage.transfer " + transfer;
+    }
+    impl_->transfers.push_back(transfer);
+    impl_->transfer_whys.push_back(why);
+  }
   // Image folders are paired by file number: all numbered from the
   // smallest first number among them (0 or 1 alike), so a camera whose
   // first file is missing starts one frame later instead of every frame
@@ -536,15 +658,23 @@ FootageReader::FootageReader(const fs::path& shot, const std::vector<std::string
   }
   long long base = LLONG_MAX;
   for (const auto& [c, folder] : folders) base = std::min(base, folder->first_number());
+  // The shot's first frame: the plate's own first number when every camera
+  // is an image folder, so a sequence 1001-1012 is frames 1001-1012 in
+  // every file hmc writes (issue 44, item 4); 1 for a sequence numbered
+  // from 0 (hmc's frames start at 1) and beside a video (whose frames are
+  // 1, 2, ...).
+  const long long first_frame =
+      folders.size() == impl_->sources.size() ? std::max(base, 1LL) : 1;
   for (const auto& [c, folder] : folders) {
-    folder->SetBase(base, c < expected_sizes.size() ? expected_sizes[c] : cv::Size());
+    folder->SetBase(base, first_frame,
+                    c < expected_sizes.size() ? expected_sizes[c] : cv::Size());
     if (folder->first_number() != base) {
       impl_->warnings.push_back(fmt::format(
           "{}'s first image file is number {}, the shot's first is {}: frames are paired by "
           "file number, so {} starts at frame {} (if its files are numbered differently, "
           "pair them with offset1)",
           camera_names[c], folder->first_number(), base, camera_names[c],
-          folder->first_number() - base + 1));
+          folder->first_number() - base + first_frame));
     } else if (folders.size() < impl_->sources.size() && base > 1) {
       impl_->warnings.push_back(fmt::format(
           "{}'s first image file is number {}: it is frame 1, paired with the video's first "
@@ -613,6 +743,18 @@ int FootageReader::first_frame() const { return impl_->first; }
 int FootageReader::last_frame() const { return impl_->last; }
 const std::vector<std::string>& FootageReader::warnings() const { return impl_->warnings; }
 double FootageReader::fps() const { return impl_->sources[0]->fps(); }
+const std::string& FootageReader::transfer(int camera) const { return impl_->transfers[camera]; }
+const std::string& FootageReader::transfer_why(int camera) const {
+  return impl_->transfer_whys[camera];
+}
+
+void FootageReader::Linearize(FootageFrame* frame) const {
+  for (size_t c = 0; c < frame->images.size() && c < impl_->transfers.size(); ++c) {
+    if (impl_->transfers[c] == "srgb" && !frame->images[c].empty()) {
+      frame->images[c] = SrgbToLinear16(frame->images[c]);
+    }
+  }
+}
 
 bool FootageReader::Next(FootageFrame* frame) { return Next(frame, nullptr); }
 
@@ -686,6 +828,68 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
     }
     return true;
   }
+}
+
+namespace {
+
+// The sRGB decoding curve (IEC 61966-2-1) of a value in [0, 1].
+double SrgbToLinear(double v) {
+  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+}
+
+// Level -> linear 16-bit level, for every level of `levels` (256 or 65536).
+std::vector<uint16_t> SrgbTable(int levels) {
+  std::vector<uint16_t> table(levels);
+  for (int i = 0; i < levels; ++i) {
+    table[i] = static_cast<uint16_t>(std::lround(65535 * SrgbToLinear(i / (levels - 1.0))));
+  }
+  return table;
+}
+
+}  // namespace
+
+std::string VideoTransfer(const fs::path& path, std::string* why) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  if (ext != ".mp4" && ext != ".mov") {
+    *why = fmt::format("the colour transfer of a {} video is not read", ext);
+    return "";
+  }
+  const int code = IsoBmffTransferCode(path);
+  // H.273: 1 BT.709, 6 BT.601, 13 sRGB, 14/15 BT.2020 (the BT.709 curve);
+  // 8 linear; 2 unspecified.
+  if (code == 1 || code == 6 || code == 13 || code == 14 || code == 15) {
+    *why = fmt::format("{}'s colr box: transfer {}", path.filename().string(), code);
+    return "srgb";
+  }
+  if (code == 8) {
+    *why = fmt::format("{}'s colr box: transfer 8 (linear)", path.filename().string());
+    return "linear";
+  }
+  *why = code == 0 ? fmt::format("no colour transfer in {}'s colr box", path.filename().string())
+                   : fmt::format("{}'s colr box: transfer {}, a curve hmc does not invert",
+                                 path.filename().string(), code);
+  return "";
+}
+
+cv::Mat SrgbToLinear16(const cv::Mat& image) {
+  static const std::vector<uint16_t> table8 = SrgbTable(256);
+  static const std::vector<uint16_t> table16 = SrgbTable(65536);
+  HMC_CHECK(image.channels() == 1 && (image.depth() == CV_8U || image.depth() == CV_16U));
+  cv::Mat out(image.size(), CV_16U);
+  const bool eight = image.depth() == CV_8U;
+  const uint16_t* table = eight ? table8.data() : table16.data();
+  for (int y = 0; y < image.rows; ++y) {
+    uint16_t* o = out.ptr<uint16_t>(y);
+    if (eight) {
+      const uint8_t* i = image.ptr<uint8_t>(y);
+      for (int x = 0; x < image.cols; ++x) o[x] = table[i[x]];
+    } else {
+      const uint16_t* i = image.ptr<uint16_t>(y);
+      for (int x = 0; x < image.cols; ++x) o[x] = table[i[x]];
+    }
+  }
+  return out;
 }
 
 cv::Mat ToGrey8(const cv::Mat& image) {

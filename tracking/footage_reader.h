@@ -9,12 +9,13 @@
 // bit, grey or colour). `FootageOptions::cam0` / `cam1` override the
 // convention with an explicit path.
 //
-// Frame numbers start at 1: a video's n-th frame (by its timestamp) is frame
-// n; an image sequence's frame is its file number minus the shot's first
-// file number (the smallest among its image folders) plus 1, so shots
-// numbered from 0 or from 1 read the same, a missing file is a missing
-// frame, and the cameras' files pair by number even when one camera's
-// first file is missing (warned). Hidden files (macOS `._*`) are not
+// Frame numbers: a video's n-th frame (by its timestamp) is frame n; an
+// image sequence's frame is its file number (the plate's own: 1001-1012
+// are frames 1001-1012), except that a shot numbered from 0 is read from
+// 1 (frame = file number + 1) and an image folder beside a video is
+// numbered from 1 like the video. The cameras' files pair by number (the
+// shot's first number is the smallest among its image folders), so a
+// missing file is a missing frame, even a camera's first (warned). Hidden files (macOS `._*`) are not
 // frames. Each file's header is checked against the sequence's size before
 // it is decoded. cam1's frame f + offset1 pairs with cam0's frame f; frames
 // are reported in cam0's numbering.
@@ -42,9 +43,16 @@ struct FootageOptions {
   std::string cam1;     // cam1 video or image folder ("" = SHOT/cam1.<ext> or SHOT/cam1/)
   std::string frames;   // inclusive range "A:B" of frame numbers; "A:" or ":B" open ("" = all)
   int offset1 = 0;      // cam1 frame number = cam0 frame number + offset1 (frames)
+  // The encoding of the footage's values: srgb | linear | auto (what each
+  // camera's files say: PNG sRGB/iCCP/gAMA chunks, JPEG, an .mp4/.mov's
+  // colr box; linear where nothing is said). Applied by FootageReader::
+  // Linearize, which only the commands that measure light call.
+  std::string transfer = "auto";
 
   // Adds the fields without a group ("cam0", "frames", "offset1", ...).
   void Register(OptionFields* fields);
+  // Adds "footage.transfer": for the commands that linearise (hmc track).
+  void RegisterTransfer(OptionFields* fields);
   bool Check() const;
 };
 
@@ -93,6 +101,16 @@ class FootageReader {
   // cam0's frame rate as its video declares it (frames per second); 0 when
   // unknown (an image folder).
   double fps() const;
+  // The encoding of a camera's values, "srgb" or "linear" (options.transfer,
+  // or with auto what the source says), and why ("footage.transfer",
+  // "PNG sRGB chunk in frame_000001.png", "not stated: assumed linear").
+  const std::string& transfer(int camera) const;
+  const std::string& transfer_why(int camera) const;
+  // Turns the images of the sRGB cameras into linear light, 16-bit (the
+  // sRGB curve inverted; 16 bits keep the dark levels apart that 8 would
+  // merge): what the dot detector measures (docs/tracking.md, "Images").
+  // Linear cameras' images are left as they are.
+  void Linearize(FootageFrame* frame) const;
 
   // Reads the next frame in order; false after the last one. Never throws
   // for a bad frame: the frame comes back with the camera's error set.
@@ -117,6 +135,15 @@ class FootageReader {
   static void ThrowIfGone(const Impl& d);
   std::unique_ptr<Impl> impl_;
 };
+
+// What an .mp4 or .mov video says of its values' encoding (its colr box's
+// transfer characteristic, ITU-T H.273): "srgb" for BT.709, BT.601, sRGB
+// and BT.2020 (the BT.709 curve), "linear", or "" (not said, another
+// container, or a curve hmc does not invert); `why` says which.
+std::string VideoTransfer(const std::filesystem::path& path, std::string* why);
+
+// An sRGB-encoded grey image (8 or 16 bit) in linear light, 16-bit.
+cv::Mat SrgbToLinear16(const cv::Mat& image);
 
 // 8-bit view of a grey image from the reader (16-bit scaled by 1/257).
 cv::Mat ToGrey8(const cv::Mat& image);

@@ -1,6 +1,8 @@
 #include "tracking/footage_reader.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/temp_dir.h"
 
 namespace hmc {
@@ -334,6 +337,214 @@ TEST(FootageReaderTest, SixteenBitAndColourImagesBecomeGreyOfTheirDepth) {
   const cv::Mat a = ToGreyFloat(frame.images[0]);
   const cv::Mat b = ToGreyFloat(Pattern(0, 1));
   EXPECT_LT(cv::norm(a, b, cv::NORM_INF), 1e-6);
+}
+
+// A plate's own frame numbers are its frames' (issue 44, item 4): a
+// sequence 1001-1012 is frames 1001-1012, paired by number, with a gap
+// where a file is missing and --frames in the plate's numbers; beside a
+// video the folder is numbered from 1 like the video.
+TEST(FootageReaderTest, APlatesOwnFrameNumbersAreItsFrames) {
+  TempDir dir;
+  WriteFolder(dir.path() / "cam0", 0, 1001, 12, {5});
+  WriteFolder(dir.path() / "cam1", 1, 1001, 12);
+  {
+    FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+    EXPECT_EQ(reader.first_frame(), 1001);
+    EXPECT_EQ(reader.last_frame(), 1012);
+    const std::vector<FootageFrame> frames = ReadAll(reader);
+    ASSERT_EQ(frames.size(), 12u);
+    for (int i = 0; i < 12; ++i) {
+      EXPECT_EQ(frames[i].frame, 1001 + i);
+      EXPECT_EQ(frames[i].complete(), i != 4) << frames[i].frame;
+      if (i != 4) {
+        EXPECT_TRUE(SameImage(frames[i].images[0], Pattern(0, i + 1)));
+      }
+      EXPECT_TRUE(SameImage(frames[i].images[1], Pattern(1, i + 1)));
+    }
+  }
+  FootageOptions range;
+  range.frames = "1003:1004";
+  FootageReader ranged(dir.path(), {"cam0", "cam1"}, range);
+  const std::vector<FootageFrame> two = ReadAll(ranged);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].frame, 1003);
+  EXPECT_TRUE(SameImage(two[0].images[1], Pattern(1, 3)));
+  // Beside a video: numbered from 1, as the video's frames are.
+  fs::remove_all(dir.path() / "cam0");
+  WriteVideo(dir.path() / "cam0.mkv", 0, 12);
+  FootageReader mixed(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  EXPECT_EQ(mixed.first_frame(), 1);
+  EXPECT_EQ(mixed.last_frame(), 12);
+}
+
+// A PNG chunk (length, type, data, CRC-32 of type and data) inserted after
+// IHDR, as a camera's encoder writes its colour-space chunks.
+void InsertPngChunk(const fs::path& path, const std::string& type, const std::string& data) {
+  std::string bytes = ReadFile(path);
+  std::string chunk;
+  for (int shift = 24; shift >= 0; shift -= 8) chunk += static_cast<char>((data.size() >> shift) & 0xff);
+  const std::string body = type + data;
+  uint32_t crc = 0xffffffffu;
+  for (const char ch : body) {
+    crc ^= static_cast<uint8_t>(ch);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xffffffffu;
+  chunk += body;
+  for (int shift = 24; shift >= 0; shift -= 8) chunk += static_cast<char>((crc >> shift) & 0xff);
+  bytes.insert(33, chunk);  // 8-byte signature + 25-byte IHDR chunk
+  WriteFileAtomic(path, bytes);
+}
+
+std::string BigEndian4(uint32_t v) {
+  return {static_cast<char>(v >> 24), static_cast<char>((v >> 16) & 0xff),
+          static_cast<char>((v >> 8) & 0xff), static_cast<char>(v & 0xff)};
+}
+
+// footage.transfer auto: each camera as its first file says (sRGB chunk,
+// gAMA, iCCP; nothing said: linear); srgb / linear override. The chunks
+// leave the pixels: OpenCV decodes the same (libpng warns that the
+// stand-in iCCP profile is too short).
+TEST(FootageReaderTest, TransferIsWhatThePngSaysOrTheOption) {
+  struct Case {
+    std::string chunk_type, chunk_data, expect;
+  };
+  const std::vector<Case> cases = {
+      {"", "", "linear"},
+      {"sRGB", std::string(1, '\0'), "srgb"},
+      {"gAMA", BigEndian4(45455), "srgb"},
+      {"gAMA", BigEndian4(100000), "linear"},
+      {"iCCP", std::string("sRGB IEC61966-2.1") + '\0' + '\0' + "xx", "srgb"},
+      {"iCCP", std::string("Linear Rec709") + '\0' + '\0' + "xx", "linear"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    WriteFolder(dir.path() / "cam0", 0, 1, 2);
+    WriteFolder(dir.path() / "cam1", 1, 1, 2);
+    if (!c.chunk_type.empty()) {
+      for (const char* name : {"frame_000001.png", "frame_000002.png"}) {
+        InsertPngChunk(dir.path() / "cam1" / name, c.chunk_type, c.chunk_data);
+      }
+    }
+    for (const std::string option : {"auto", "srgb", "linear"}) {
+      FootageOptions options;
+      options.transfer = option;
+      FootageReader reader(dir.path(), {"cam0", "cam1"}, options);
+      const std::string expect = option == "auto" ? c.expect : option;
+      EXPECT_EQ(reader.transfer(1), expect) << c.chunk_type << " " << option << ": "
+                                            << reader.transfer_why(1);
+      EXPECT_EQ(reader.transfer(0), option == "auto" ? "linear" : option);
+      FootageFrame frame;
+      ASSERT_TRUE(reader.Next(&frame));
+      EXPECT_TRUE(SameImage(frame.images[1], Pattern(1, 1))) << c.chunk_type;
+    }
+  }
+}
+
+// An ISO BMFF box: 32-bit size, type, body.
+std::string Box(const std::string& type, const std::string& body) {
+  return BigEndian4(static_cast<uint32_t>(8 + body.size())) + type + body;
+}
+
+// An .mp4/.mov's colr box names its transfer (H.273 codes): found under
+// moov/trak/mdia/minf/stbl/stsd/<sample entry>, wherever moov lies; the
+// BT.709 family is read as sRGB, 8 as linear, the rest as not said.
+TEST(FootageReaderTest, AVideosColrBoxGivesItsTransfer) {
+  TempDir dir;
+  auto write = [&](const std::string& name, const std::string& colr_kind, int transfer,
+                   bool moov_last) {
+    const std::string colr =
+        colr_kind.empty() ? ""
+                          : Box("colr", colr_kind + std::string("\0\1", 2) +
+                                            std::string(1, '\0') + static_cast<char>(transfer) +
+                                            std::string("\0\1", 2) +
+                                            (colr_kind == "nclx" ? std::string(1, '\0') : ""));
+    const std::string entry = Box("avc1", std::string(78, '\0') + Box("avcC", "xyz") + colr);
+    const std::string stsd = Box("stsd", std::string(7, '\0') + '\1' + entry);
+    const std::string moov = Box(
+        "moov", Box("mvhd", std::string(20, '\0')) +
+                    Box("trak", Box("mdia", Box("minf", Box("stbl", stsd)))));
+    const std::string mdat = Box("mdat", std::string(100, '\7'));
+    const std::string ftyp = Box("ftyp", "isom\0\0\2\0");
+    WriteFileAtomic(dir.path() / name, ftyp + (moov_last ? mdat + moov : moov + mdat));
+    return dir.path() / name;
+  };
+  std::string why;
+  EXPECT_EQ(VideoTransfer(write("a.mp4", "nclx", 1, false), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("b.mov", "nclc", 1, true), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("c.mp4", "nclx", 13, true), &why), "srgb") << why;
+  EXPECT_EQ(VideoTransfer(write("d.mp4", "nclx", 8, false), &why), "linear") << why;
+  EXPECT_EQ(VideoTransfer(write("e.mp4", "nclx", 2, false), &why), "") << why;
+  EXPECT_EQ(VideoTransfer(write("f.mp4", "nclx", 16, false), &why), "") << why;  // PQ
+  EXPECT_NE(why.find("does not invert"), std::string::npos) << why;
+  EXPECT_EQ(VideoTransfer(write("g.mp4", "", 0, false), &why), "") << why;
+  EXPECT_EQ(VideoTransfer(write("h.mkv", "nclx", 1, false), &why), "") << why;
+  // What OpenCV's writer makes says nothing: read as linear (auto).
+  WriteVideo(dir.path() / "cam0.mkv", 0, 2);
+  WriteVideo(dir.path() / "cam1.mkv", 1, 2);
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  EXPECT_EQ(reader.transfer(0), "linear") << reader.transfer_why(0);
+}
+
+// Linearize turns an sRGB camera's 8- or 16-bit values into linear light
+// (16-bit), within the encoding's quantisation; a linear camera's images
+// stay as they are.
+TEST(FootageReaderTest, SrgbFramesAreLinearisedWithinQuantisation) {
+  TempDir dir;
+  fs::create_directories(dir.path() / "cam0");
+  fs::create_directories(dir.path() / "cam1");
+  // A linear ramp over [0, 1], encoded by the sRGB curve to 8 and 16 bit.
+  cv::Mat linear(kSize, CV_64F);
+  for (int y = 0; y < kSize.height; ++y) {
+    for (int x = 0; x < kSize.width; ++x) {
+      linear.at<double>(y, x) = (y * kSize.width + x) / (kSize.area() - 1.0);
+    }
+  }
+  auto encode = [&](double full_scale, int type) {
+    cv::Mat out(kSize, type);
+    for (int y = 0; y < kSize.height; ++y) {
+      for (int x = 0; x < kSize.width; ++x) {
+        const double v = linear.at<double>(y, x);
+        const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+        const double q = std::round(e * full_scale);
+        if (type == CV_8U) out.at<uint8_t>(y, x) = static_cast<uint8_t>(q);
+        else out.at<uint16_t>(y, x) = static_cast<uint16_t>(q);
+      }
+    }
+    return out;
+  };
+  WritePng(dir.path() / "cam0" / "f1.png", encode(255, CV_8U), true);
+  WritePng(dir.path() / "cam1" / "f1.png", encode(65535, CV_16U), true);
+  FootageReader reader(dir.path(), {"cam0", "cam1"}, FootageOptions{});
+  ASSERT_EQ(reader.transfer(0), "srgb") << reader.transfer_why(0);
+  ASSERT_EQ(reader.transfer(1), "srgb") << reader.transfer_why(1);
+  FootageFrame frame;
+  ASSERT_TRUE(reader.Next(&frame));
+  const cv::Mat stored8 = frame.images[0].clone();
+  reader.Linearize(&frame);
+  for (int c = 0; c < 2; ++c) {
+    ASSERT_EQ(frame.images[c].type(), CV_16U);
+    cv::Mat read;
+    frame.images[c].convertTo(read, CV_64F, 1 / 65535.0);
+    // Half a step of the encoding in linear terms where it is widest (the
+    // sRGB decoding curve's slope is at most 2.4 / 1.055, at full scale),
+    // plus the 16-bit output's rounding.
+    const double step = (c == 0 ? 1 / 255.0 : 1 / 65535.0) * 2.4 / 1.055;
+    EXPECT_LT(cv::norm(read, linear, cv::NORM_INF), 0.5 * step + 1 / 65535.0) << "cam" << c;
+  }
+  // Read as stored, the same values are far from linear (mid-grey 0.5 is
+  // stored as 0.735).
+  cv::Mat as_stored;
+  stored8.convertTo(as_stored, CV_64F, 1 / 255.0);
+  EXPECT_GT(cv::norm(as_stored, linear, cv::NORM_INF), 0.2);
+  // A linear camera: untouched.
+  FootageOptions linear_options;
+  linear_options.transfer = "linear";
+  FootageReader plain(dir.path(), {"cam0", "cam1"}, linear_options);
+  ASSERT_TRUE(plain.Next(&frame));
+  const cv::Mat before = frame.images[0].clone();
+  plain.Linearize(&frame);
+  EXPECT_TRUE(SameImage(frame.images[0], before));
 }
 
 std::string ErrorOf(const fs::path& shot, const FootageOptions& options,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <map>
 
@@ -24,6 +25,7 @@ namespace hmc {
 
 void TrackOptions::Register(OptionFields* fields) {
   footage.Register(fields);
+  footage.RegisterTransfer(fields);
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral and names are given");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
@@ -58,6 +60,30 @@ std::string TrackSummary::BriefReport() const {
 }
 
 namespace {
+
+// Exposure changing over the shot (auto-exposure, a light dimming): the
+// linear frame scaled back to the reference frame's level (its mean), into
+// 16 bits, when the two differ by more than 3 %. In linear light an
+// exposure change is a gain; undone, the detector's absolute thresholds
+// (min_step, in fractions of full scale) and the optical flow's
+// brightness constancy hold as at the reference frame
+// (docs/tracking.md, "Images"). Returns the gain applied (1: none).
+double FullScale(const cv::Mat& image) { return image.depth() == CV_16U ? 65535.0 : 255.0; }
+
+// The mean level of a frame, as a fraction of full scale.
+double ExposureLevel(const cv::Mat& image) { return cv::mean(image)[0] / FullScale(image); }
+
+double MatchExposure(cv::Mat* image, double reference_level) {
+  if (image->empty() || !(reference_level > 0)) return 1;
+  const double level = ExposureLevel(*image);
+  if (!(level > 0)) return 1;
+  const double gain = reference_level / level;
+  if (std::abs(gain - 1) <= 0.03) return 1;
+  cv::Mat scaled;
+  image->convertTo(scaled, CV_16U, gain * 65535.0 / FullScale(*image));
+  *image = scaled;
+  return gain;
+}
 
 // The named dots drawn on a fisheye frame (--overlay).
 cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
@@ -108,23 +134,33 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     names.push_back(hc.name);
     sizes.emplace_back(hc.camera.width, hc.camera.height);
   }
+  TrackOutput output;
   FootageReader reader(input.shot, names, options.footage, sizes);
   const int num_cameras = reader.num_cameras();
+  // The detector measures light: sRGB footage is linearised before it
+  // (docs/tracking.md, "Images"); which encoding each camera was read as
+  // is logged and goes to summary.json.
+  TrackSummary& summary = output.summary;
+  for (int c = 0; c < num_cameras; ++c) {
+    summary.transfer.push_back(reader.transfer(c));
+    summary.transfer_why.push_back(reader.transfer_why(c));
+    spdlog::info("track: {} read as {} ({})", names[c], reader.transfer(c), reader.transfer_why(c));
+  }
   if (!input.overlay_dir.empty()) EnsureDirectory(input.overlay_dir);
   if (!input.out.parent_path().empty()) EnsureDirectory(input.out.parent_path());
 
-  TrackOutput output;
-  TrackSummary& summary = output.summary;
   MarkerTracker tracker(rig, layout, options.tracker);
   nlohmann::json frames_json = nlohmann::json::array();
   std::vector<double> dot_size(num_cameras, options.detect.dot_size_px);
+  std::vector<double> reference_level(num_cameras, 0);  // mean linear level, per camera
   bool started = false;
   int64_t detections_total = 0, named_total = 0, views = 0;
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
     auto frame = std::make_unique<FootageFrame>();
-    if (!reader.Next(frame.get())) frame.reset();
+    if (!reader.Next(frame.get())) return std::unique_ptr<FootageFrame>();
+    reader.Linearize(frame.get());
     return frame;
   };
   std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
@@ -152,6 +188,14 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                           "or check --detect.polarity)",
                           frame->frame);
         }
+      }
+    }
+    if (!started) {
+      for (int c = 0; c < num_cameras; ++c) reference_level[c] = ExposureLevel(frame->images[c]);
+    } else {
+      for (int c = 0; c < num_cameras; ++c) {
+        const double gain = MatchExposure(&frame->images[c], reference_level[c]);
+        if (gain != 1) ++summary.exposure_matched_views;
       }
     }
     std::vector<std::vector<DotDetection>> detections(num_cameras);
@@ -247,6 +291,9 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   j["stage"] = "track";
   j["reference_frame"] = summary.reference_frame;
   j["dot_size_px"] = summary.dot_size_px;
+  for (int c = 0; c < num_cameras; ++c) {
+    j["transfer"][names[c]] = {{"read_as", summary.transfer[c]}, {"why", summary.transfer_why[c]}};
+  }
   j["labelling"] = {{"ok", summary.labelling.ok},
                     {"candidate_points", summary.labelling.candidate_points},
                     {"inliers", summary.labelling.inliers},
@@ -263,6 +310,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                   {"mean_named", summary.mean_named},
                   {"reacquired", summary.reacquired},
                   {"swaps_caught", summary.swaps_caught},
+                  {"exposure_matched_views", summary.exposure_matched_views},
                   {"rows", summary.rows},
                   {"seconds", summary.seconds}};
   if (!input.diagnostics.empty()) {

@@ -45,11 +45,17 @@ struct TrackSummary {
   int skipped_views = 0;      // camera images that failed to decode
   int reference_frame = 0;    // the frame labelled
   std::vector<double> dot_size_px;  // per camera, used by the detector
+  // Per camera: the encoding its values were read as ("srgb", "linear")
+  // and why (FootageReader::transfer_why).
+  std::vector<std::string> transfer, transfer_why;
   ReferenceLabelling labelling;
   double mean_detections = 0;  // per view
   double mean_named = 0;       // per view
   int reacquired = 0;
   int swaps_caught = 0;
+  // Views whose exposure was scaled back to the reference frame's (their
+  // mean level more than 3 % off it).
+  int exposure_matched_views = 0;
   int64_t rows = 0;
   double seconds = 0;
   // The actor's markers named in no view of the shot (hidden all along,
