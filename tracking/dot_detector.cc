@@ -234,11 +234,27 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
   // silhouette, a shadowed lid, an eyebrow, a nostril) stay. A square's
   // corners would not follow a round dark region, whose rim would then
   // read as darker than the skin.
+  // The disc is a regular octagon, a square (separable) grown by a
+  // diamond (iterated 3 x 3 crosses), several times faster than a true
+  // disc; a round region's rim departs from it by under half a pixel.
   const int close_side = static_cast<int>(std::ceil(dot_size_px) + 2) | 1;
+  const int diamond = static_cast<int>(std::lround(0.293 * close_side));
+  const cv::Mat square = cv::getStructuringElement(
+      cv::MORPH_RECT, cv::Size(close_side - 2 * diamond, close_side - 2 * diamond));
+  const cv::Mat cross = cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3));
+  auto grow = [&](const cv::Mat &in, cv::Mat *result, int op) {
+    cv::morphologyEx(in, *result, op, square, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+    if (diamond > 0) {
+      cv::morphologyEx(*result, *result, op, cross, cv::Point(-1, -1), diamond,
+                       cv::BORDER_REPLICATE);
+    }
+  };
+  // On the frame's own type (8 or 16 bit: several times faster than on
+  // floats); the closing commutes with the conversion, which is monotonic.
   cv::Mat skin;
-  cv::morphologyEx(image, skin, sign > 0 ? cv::MORPH_CLOSE : cv::MORPH_OPEN,
-                   cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(close_side, close_side)),
-                   cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  grow(grey, &skin, sign > 0 ? cv::MORPH_DILATE : cv::MORPH_ERODE);
+  grow(skin, &skin, sign > 0 ? cv::MORPH_ERODE : cv::MORPH_DILATE);
+  skin = AsFloat(skin);
   std::vector<DotDetection> out;
   // Three levels: the blobs at min_contrast, then at twice it, which splits
   // a dot from a fainter dark feature it touches (an eyelid crease, the lip
@@ -273,21 +289,34 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
     // every pixel of a dot seen edge-on is only partly covered and few
     // reach the full contrast (a 4 px dot at view cosine 0.25 is a
     // pixel wide: one or two pixels pass, not a blob).
-    const cv::Mat mask = level == 2 ? threshold(kGrowContrast * contrast, kGrowContrast * step)
-                                    : threshold(contrast, step);
+    // One pass gives the grown mask and the seeds.
+    std::vector<cv::Point> seeds;
+    cv::Mat mask;
+    if (level == 2) {
+      mask.create(image.size(), CV_8U);
+      const float c = static_cast<float>(contrast), s = static_cast<float>(step);
+      const float grown_c = static_cast<float>(kGrowContrast) * c;
+      const float grown_s = static_cast<float>(kGrowContrast) * s;
+      const float polarity = static_cast<float>(sign);
+      for (int y = 0; y < image.rows; ++y) {
+        const float *row = image.ptr<float>(y);
+        const float *b = background.ptr<float>(y);
+        uchar *m = mask.ptr<uchar>(y);
+        for (int x = 0; x < image.cols; ++x) {
+          const float darkening = polarity * (b[x] - row[x]);  // brightening for bright dots
+          m[x] = darkening > std::max(grown_c * b[x], grown_s) ? 255 : 0;
+        }
+        for (int x = 0; x < image.cols; ++x) {
+          if (m[x] && polarity * (b[x] - row[x]) > std::max(c * b[x], s)) seeds.emplace_back(x, y);
+        }
+      }
+    } else {
+      mask = threshold(contrast, step);
+    }
     cv::Mat labels, stats, centroids;
     const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
     std::vector<char> seeded(n, level == 2 ? 0 : 1);
-    if (level == 2) {
-      const cv::Mat seeds = threshold(contrast, step);
-      for (int y = 0; y < seeds.rows; ++y) {
-        const uchar *seed = seeds.ptr<uchar>(y);
-        const int *label = labels.ptr<int>(y);
-        for (int x = 0; x < seeds.cols; ++x) {
-          if (seed[x]) seeded[label[x]] = 1;
-        }
-      }
-    }
+    for (const cv::Point &p : seeds) seeded[labels.at<int>(p)] = 1;
     const double min_area = std::max(2.0, M_PI / 4 * min_d * min_d / options.max_elongation);
     const double max_area = M_PI / 4 * max_d * max_d;
     const int border = options.border_px;
@@ -340,6 +369,14 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
       const Vec2 start(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
       if (start.x() < margin || start.y() < margin || start.x() + margin >= image.cols ||
           start.y() + margin >= image.rows) {
+        continue;
+      }
+      // A dot the earlier levels found is found again here: skip it before
+      // the (costly) centre refinement.
+      if (level == 2 && std::any_of(out.begin(), out.begin() + earlier_count,
+                                    [&](const DotDetection &d) {
+                                      return (d.pixel - start).norm() < 0.5 * dot_size_px;
+                                    })) {
         continue;
       }
       const Refined refined =
