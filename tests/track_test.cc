@@ -102,9 +102,11 @@ TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
     // Whole dots seen edge-on (issue 44; dots ~4 px here, so a dot at view
     // cosine 0.2 is under a pixel wide): those at 0.3-0.4 are named as
     // often as face-on ones, and those down to 0.15 are centred as well as
-    // full ones; the 0.15-0.3 bin (about 45 % named here) misses the
-    // issue's 99 % (docs/tracking.md).
+    // full ones; the 0.15-0.3 bin (53-56 % named here since the detector's
+    // level against the closed skin, 44-48 % before) misses the issue's
+    // 99 % (docs/tracking.md).
     ASSERT_TRUE(s.has_whole);
+    EXPECT_GE(s.whole_bins[1].Recall(), 0.5) << "seed " << seed;
     EXPECT_GE(s.whole_bins[2].Recall(), 0.9) << "seed " << seed;
     EXPECT_GE(s.whole_from_015.Recall(), 0.8) << "seed " << seed;
     EXPECT_LE(s.whole_from_015.median_px, 0.05) << "seed " << seed;

@@ -8,7 +8,17 @@
 //    least `min_step` of full scale and 5 noise sigmas (the noise estimated
 //    from neighbour differences on lit pixels), so sensor noise, also in
 //    the unlit helmet interior, is not a dot. Connected
-//    components of that mask are the candidates.
+//    components of that mask are the candidates, at c and again at 2c
+//    (which splits a dot from a fainter feature it touches), and a third
+//    time against the skin without the dots instead of B: the image closed
+//    by a disc a little wider than a dot, since a dark region within the
+//    box (beyond a silhouette, a shadowed lid, an eyebrow) drags B down and
+//    with it a dot beside it below the threshold. At that level a blob is
+//    seeded by pixels at c and grown over those at 0.6 c (the pixels of a
+//    dot seen edge-on are only partly covered), and must have skin round
+//    three quarters of its ring (step 3), so the seen part of a dot cut by
+//    the dark region is not taken for a dot. A later level's blob counts
+//    only where the earlier ones found none.
 // 2. Rejection by size and shape: from the blob's binary second moments,
 //    the ellipse of the same moments (axes 4 sqrt(lambda_i)). A painted disc
 //    seen from any angle is an ellipse at most its diameter long: the long

@@ -19,24 +19,65 @@ struct Scene {
   std::vector<Vec2> centres;
 };
 
-// `cos` < 1: each disc seen at that view cosine, an ellipse of axes
-// diameter and cos x diameter at a random orientation (its area centroid
-// is still its centre). `texture`: the skin's albedo varies by +-texture
+// Multiplies `radiance` by the paint (radiance 0.07 on skin of 0.6) over a
+// disc of diameter `diameter` centred at `c`, seen at view cosine `cos`:
+// an ellipse of axes diameter and cos x diameter, its long axis at `angle`
+// (its area centroid is still its centre), anti-aliased by 8 x 8
+// supersampling.
+void PaintDot(cv::Mat* radiance, const Vec2& c, double diameter, double cos, double angle) {
+  const double r = diameter / 2;
+  const double ca = std::cos(angle), sa = std::sin(angle);
+  for (int y = static_cast<int>(c.y() - r - 2); y <= c.y() + r + 2; ++y) {
+    for (int x = static_cast<int>(c.x() - r - 2); x <= c.x() + r + 2; ++x) {
+      int inside = 0;
+      for (int sy = 0; sy < 8; ++sy) {
+        for (int sx = 0; sx < 8; ++sx) {
+          const double px = x - 0.5 + (sx + 0.5) / 8 - c.x(), py = y - 0.5 + (sy + 0.5) / 8 - c.y();
+          const double along = ca * px + sa * py, across = (-sa * px + ca * py) / cos;
+          inside += std::hypot(along, across) <= r;
+        }
+      }
+      const double coverage = inside / 64.0;
+      radiance->at<double>(y, x) *= 1 - coverage * (1 - 0.07 / 0.6);
+    }
+  }
+}
+
+// Shaded skin (radiance about 0.6) whose albedo varies by +-texture
 // (uniform per pixel, as a rough stand-in for pores and freckles).
+cv::Mat MakeSkin(std::mt19937* rng, int w, int h, double texture) {
+  std::uniform_real_distribution<double> u01(0, 1);
+  cv::Mat radiance(h, w, CV_64F);
+  const double gx = 0.3 * (u01(*rng) - 0.5) / w, gy = 0.3 * (u01(*rng) - 0.5) / h;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      radiance.at<double>(y, x) = (0.6 + gx * (x - w / 2) + gy * (y - h / 2)) *
+                                  (1 + texture * (2 * u01(*rng) - 1));
+    }
+  }
+  return radiance;
+}
+
+// The 8-bit image of `radiance` with read noise of sigma `noise`.
+cv::Mat Expose(const cv::Mat& radiance, double noise, std::mt19937* rng) {
+  std::normal_distribution<double> normal(0, 1);
+  cv::Mat image(radiance.rows, radiance.cols, CV_8U);
+  for (int y = 0; y < radiance.rows; ++y) {
+    for (int x = 0; x < radiance.cols; ++x) {
+      const double v = 255 * radiance.at<double>(y, x) + noise * normal(*rng);
+      image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(std::lround(v));
+    }
+  }
+  return image;
+}
+
+// `cos` < 1: each disc seen at that view cosine at a random orientation.
 Scene MakeScene(int seed, double diameter, int count, double noise, double cos = 1,
                 double texture = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0, 1);
-  std::normal_distribution<double> normal(0, 1);
   const int w = 480, h = 360;
-  cv::Mat radiance(h, w, CV_64F);
-  const double gx = 0.3 * (u01(rng) - 0.5) / w, gy = 0.3 * (u01(rng) - 0.5) / h;
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      radiance.at<double>(y, x) = (0.6 + gx * (x - w / 2) + gy * (y - h / 2)) *
-                                  (1 + texture * (2 * u01(rng) - 1));
-    }
-  }
+  cv::Mat radiance = MakeSkin(&rng, w, h, texture);
   Scene scene;
   const double spacing = std::max(4 * diameter, 24.0);
   for (double y = spacing; y < h - spacing && static_cast<int>(scene.centres.size()) < count; y += spacing) {
@@ -44,33 +85,35 @@ Scene MakeScene(int seed, double diameter, int count, double noise, double cos =
       scene.centres.emplace_back(x + u01(rng) - 0.5, y + u01(rng) - 0.5);
     }
   }
-  const double r = diameter / 2;
   for (const Vec2& c : scene.centres) {
-    const double angle = cos < 1 ? M_PI * u01(rng) : 0;
-    const double ca = std::cos(angle), sa = std::sin(angle);
-    for (int y = static_cast<int>(c.y() - r - 2); y <= c.y() + r + 2; ++y) {
-      for (int x = static_cast<int>(c.x() - r - 2); x <= c.x() + r + 2; ++x) {
-        int inside = 0;
-        for (int sy = 0; sy < 8; ++sy) {
-          for (int sx = 0; sx < 8; ++sx) {
-            const double px = x - 0.5 + (sx + 0.5) / 8 - c.x(), py = y - 0.5 + (sy + 0.5) / 8 - c.y();
-            const double along = ca * px + sa * py, across = (-sa * px + ca * py) / cos;
-            inside += std::hypot(along, across) <= r;
-          }
-        }
-        const double coverage = inside / 64.0;
-        radiance.at<double>(y, x) *= 1 - coverage * (1 - 0.07 / 0.6);
-      }
-    }
+    PaintDot(&radiance, c, diameter, cos, cos < 1 ? M_PI * u01(rng) : 0);
   }
-  scene.image.create(h, w, CV_8U);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const double v = 255 * radiance.at<double>(y, x) + noise * normal(rng);
-      scene.image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(std::lround(v));
-    }
-  }
+  scene.image = Expose(radiance, noise, &rng);
   return scene;
+}
+
+// Every dot found within 1 px, nothing else found, and the centres within
+// the issue's targets for dots seen edge-on (docs/tracking.md: median
+// 0.05 px, p95 0.2 px).
+void ExpectEachFoundAndCentred(const std::vector<Vec2>& centres,
+                               const std::vector<DotDetection>& found, const std::string& what) {
+  std::vector<double> errors;
+  int missed = 0;
+  for (const Vec2& c : centres) {
+    double best = 1e9;
+    for (const DotDetection& d : found) best = std::min(best, (d.pixel - c).norm());
+    if (best > 1) {
+      ++missed;
+    } else {
+      errors.push_back(best);
+    }
+  }
+  EXPECT_EQ(missed, 0) << what;
+  EXPECT_EQ(found.size(), centres.size()) << what;
+  ASSERT_FALSE(errors.empty()) << what;
+  std::sort(errors.begin(), errors.end());
+  EXPECT_LT(errors[errors.size() / 2], 0.05) << what;
+  EXPECT_LT(errors[errors.size() * 95 / 100], 0.2) << what;
 }
 
 TEST(DotDetectorTest, CentresAreSubPixelAccurateOnShadedNoisySkin) {
@@ -108,25 +151,51 @@ TEST(DotDetectorTest, CentresEdgeOnEllipsesAtSubPixelPositions) {
     for (double cos : {0.2, 0.25, 0.3}) {
       for (double diameter : {6.0, 9.0, 12.0}) {
         const Scene scene = MakeScene(10 * seed, diameter, 40, 1.0, cos, 0.05);
-        const std::vector<DotDetection> found = DetectDots(scene.image, options, diameter);
-        std::vector<double> errors;
-        int missed = 0;
-        for (const Vec2& c : scene.centres) {
-          double best = 1e9;
-          for (const DotDetection& d : found) best = std::min(best, (d.pixel - c).norm());
-          if (best > 1) {
-            ++missed;
-          } else {
-            errors.push_back(best);
+        ExpectEachFoundAndCentred(scene.centres, DetectDots(scene.image, options, diameter),
+                                  fmt::format("seed {} cos {} d {}", seed, cos, diameter));
+      }
+    }
+  }
+}
+
+// Dots seen edge-on beside a dark region (issue 44: the dark beyond a
+// silhouette, a shadowed lid, an eyebrow): a thin ellipse (view cosine
+// 0.25-0.3, its long axis near vertical) whose left side faces, `gap` px
+// from its centre, the edge of a dark band (radiance x 0.05, 2 dot
+// diameters wide, the image's height long) on textured, shaded, noisy
+// skin. Each dot is found and centred (docs/tracking.md targets: median
+// 0.05 px, p95 0.2 px), and the band's edge, which the detector's level
+// against the closed skin sees as darker than the skin, yields no dot.
+// At cos 0.2 and for dots under 6 px the blind detector still misses some
+// (docs/tracking.md).
+TEST(DotDetectorTest, FindsEdgeOnDotsBesideADarkRegionAndNoneAtItsEdge) {
+  DotDetectorOptions options;
+  for (int seed = 1; seed <= 3; ++seed) {
+    for (double cos : {0.25, 0.3}) {
+      for (double diameter : {6.0, 9.0}) {
+        std::mt19937 rng(1000 * seed + static_cast<int>(100 * cos) + static_cast<int>(diameter));
+        std::uniform_real_distribution<double> u01(0, 1);
+        const int w = 480, h = 360;
+        cv::Mat radiance = MakeSkin(&rng, w, h, 0.05);
+        const double gap = 4, spacing = 48;
+        std::vector<Vec2> centres;
+        for (double x = spacing; x < w - spacing; x += spacing) {
+          // The band's edge at x - gap, anti-aliased (its coverage).
+          for (int px = static_cast<int>(x - gap - 2 * diameter) - 1; px <= x - gap + 1; ++px) {
+            const double coverage = std::clamp(std::min(x - gap - (px - 0.5),
+                                                        px + 0.5 - (x - gap - 2 * diameter)),
+                                               0.0, 1.0);
+            for (int y = 0; y < h; ++y) radiance.at<double>(y, px) *= 1 - 0.95 * coverage;
+          }
+          for (double y = spacing; y < h - spacing; y += spacing) {
+            const Vec2 c(x + u01(rng) - 0.5, y + u01(rng) - 0.5);
+            centres.push_back(c);
+            PaintDot(&radiance, c, diameter, cos, M_PI / 2 + 0.4 * (u01(rng) - 0.5));
           }
         }
-        const std::string what = fmt::format("seed {} cos {} d {}", seed, cos, diameter);
-        EXPECT_EQ(missed, 0) << what;
-        EXPECT_EQ(found.size(), scene.centres.size()) << what;
-        ASSERT_FALSE(errors.empty()) << what;
-        std::sort(errors.begin(), errors.end());
-        EXPECT_LT(errors[errors.size() / 2], 0.05) << what;
-        EXPECT_LT(errors[errors.size() * 95 / 100], 0.2) << what;
+        const cv::Mat image = Expose(radiance, 1.0, &rng);
+        ExpectEachFoundAndCentred(centres, DetectDots(image, options, diameter),
+                                  fmt::format("seed {} cos {} d {}", seed, cos, diameter));
       }
     }
   }
