@@ -55,6 +55,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "core/actor.h"
 #include "core/jaw.h"
 #include "core/calibration.h"
@@ -97,6 +99,13 @@ struct MarkerLayout {
   JawRig jaw_rig;
   std::vector<double> jaw_weights;
   std::array<double, 3> jaw_lower{}, jaw_upper{};
+  // The dataset's expressions at the markers: the principal components of
+  // its shapes' marker displacements (unskinned by each shape's jaw pose
+  // with a jaw rig), 3K x P, rows 3k..3k+2 marker k, each column scaled to
+  // the RMS of its coefficient over the dataset (mm); P = 0 without shapes.
+  Eigen::MatrixXd expression_basis;
+  // P x N: the dataset's shapes in that basis (column n: shape n).
+  Eigen::MatrixXd expression_shapes;
 
   // The positions with the jaw at `pose` (as they are without a rig).
   std::vector<Vec3> PosedPositions(const JawPose& pose) const;
@@ -122,6 +131,10 @@ struct ReferenceLabelling {
   Rigid3 helmet_from_head = Rigid3::Identity();
   JawPose jaw;                 // the jaw pose found (zero without a jaw rig)
   int candidate_points = 0;    // stereo pairs within the gap
+  double paired_share = 0;     // least over the cameras: share of its detections in a stereo pair
+  int rigid_inliers = 0;       // markers on a point under the rigid (and jaw) registration
+  int expression_inliers = 0;  // the same with the dataset's expression fitted (step 2, last)
+  bool expression = false;     // the names come from the expressed layout
   int inliers = 0;             // markers matched by the registration
   double rms_mm = 0;           // registration residual over the inliers
 };

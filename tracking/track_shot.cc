@@ -249,6 +249,10 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   j["dot_size_px"] = summary.dot_size_px;
   j["labelling"] = {{"ok", summary.labelling.ok},
                     {"candidate_points", summary.labelling.candidate_points},
+                    {"paired_share", summary.labelling.paired_share},
+                    {"rigid_inliers", summary.labelling.rigid_inliers},
+                    {"expression_inliers", summary.labelling.expression_inliers},
+                    {"expression", summary.labelling.expression},
                     {"inliers", summary.labelling.inliers},
                     {"rms_mm", summary.labelling.rms_mm},
                     {"jaw",
