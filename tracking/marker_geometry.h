@@ -88,10 +88,12 @@ void ForEachJawPose(const std::array<double, 3>& lo, const std::array<double, 3>
 }
 
 // Every cam0 x cam1 pair of detections whose rays pass within gap_mm: its
-// midpoint (helmet space) and the two detections.
+// midpoint (helmet space) and the two detections; and per cam0 detection
+// the smallest gap to any cam1 ray (infinite if none meets it).
 struct StereoPairs {
   std::vector<Vec3> points;
   std::vector<std::pair<int, int>> pair_of;
+  std::vector<double> smallest_gap0;
 };
 StereoPairs PairDetections(const HelmetRig& rig,
                            const std::vector<std::vector<DotDetection>>& detections, double gap_mm);

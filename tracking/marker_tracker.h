@@ -132,6 +132,7 @@ struct ReferenceLabelling {
   JawPose jaw;                 // the jaw pose found (zero without a jaw rig)
   int candidate_points = 0;    // stereo pairs within the gap
   double paired_share = 0;     // least over the cameras: share of its detections in a stereo pair
+  double median_gap_mm = 0;    // median over cam0's detections of the smallest ray gap to cam1's
   int rigid_inliers = 0;       // markers on a point under the rigid (and jaw) registration
   int expression_inliers = 0;  // the same with the dataset's expression fitted (step 2, last)
   bool expression = false;     // the names come from the expressed layout
