@@ -19,7 +19,15 @@
 //      (widened), the pose whose skinned layout (core/jaw.h) puts the most
 //      markers within `inlier_mm` of a candidate point (then the smallest
 //      residual) wins, is refined on a finer grid, and ICP is redone with
-//      the posed layout; the names of step 3 come from it.
+//      the posed layout. Then the expression: the layout plus the
+//      principal components of the dataset's marker displacements, its
+//      weights started by a greedy search over the dataset's shapes and
+//      refined by ICP whose rounds fit pose and weights jointly and
+//      robustly (stabilization/head_fit.h); kept where it puts more
+//      markers on points than the rigid fit, and at least half the
+//      detections. The names of step 3 come from the layout chosen. A
+//      failure says its likely cause (the calibration, from the stereo
+//      rays' gaps; else the actor's markers or the reference frame).
 //   3. Names, per camera: each marker facing the camera is projected with
 //      the registered pose; a global assignment (tracking/assignment.h)
 //      matches projections to detections within a gate of `name_gate` x
