@@ -150,9 +150,19 @@ std::vector<PointMatch> MutualMatches(const PointGrid& grid, const Rigid3& helme
 
 // The robust loss and the ridge of the expression fit, and how its
 // components are let in: a few first, all at the end (coarse to fine, so
-// that the first matches, made against a layout near neutral, cannot bend
-// the many fine components onto wrong points).
+// that the first matches, made against a layout still far from the face,
+// cannot bend the many fine components onto wrong points).
 constexpr double kExpressionLossMm = 1.0;
+constexpr double kExpressionRidge = 0.1;  // mm^2 per (unit RMS coefficient)^2
+constexpr int kExpressionStages[] = {6, 12, 20, kMaxExpressionComponents};
+// The search for its start: shapes added at most, and their scales.
+constexpr int kSearchedShapes = 6;
+constexpr double kShapeScales[] = {0.25, 0.5, 0.75, 1.0, 1.25, -0.5};
+// The expressed layout bends: it is taken only when it explains at least
+// this share of the detections of the camera with fewer (measured: 0.75-
+// 0.93 on broad-rig shots, 0.34 on a rig 2 mm / 1 degree off, where it
+// had bent onto wrong points).
+constexpr double kExpressedShareOfDetections = 0.5;
 // Fewer unique stereo pairs than this: RANSAC draws from all of them.
 constexpr size_t kMinUniquePairs = 12;
 // The stereo pose is suspected when the median over cam0's dots of the
@@ -162,15 +172,6 @@ constexpr size_t kMinUniquePairs = 12;
 // pair (on a calibrated rig most painted dots are seen by both cameras).
 constexpr double kCalibratedGapMm = 0.1;
 constexpr double kPairedShareOfAGoodCalibration = 0.5;
-// The expressed layout bends: it is taken only when it explains at least
-// this share of the detections of the camera with fewer (measured: 0.75-
-// 0.93 on broad-rig shots, 0.34 on a rig 2 mm / 1 degree off, where it
-// had bent onto wrong points).
-constexpr double kExpressedShareOfDetections = 0.5;
-constexpr double kExpressionRidge = 0.1;  // mm^2 per (unit RMS coefficient)^2
-constexpr int kSearchedShapes = 6;
-constexpr double kShapeScales[] = {0.25, 0.5, 0.75, 1.0, 1.25, -0.5};
-constexpr int kExpressionStages[] = {6, 12, 20, kMaxExpressionComponents};
 
 struct ExpressedLayout {
   Rigid3 helmet_from_head = Rigid3::Identity();
@@ -307,8 +308,8 @@ ExpressedLayout FitExpressedLayout(const std::vector<Vec3>& base, const MarkerLa
 }
 
 // The likely cause of a failed registration (issue 44, item 6), from the
-// share of the detections that found a stereo partner: rays that miss
-// each other mean a calibration whose stereo pose is off; dots that pair
+// stereo rays: rays that miss each other (the median smallest gap, the
+// share of dots paired) mean a calibration whose stereo pose is off; dots that pair
 // but do not fit the layout mean another actor or markers.csv, or a
 // reference frame far from the layout (an extreme expression, occlusion).
 std::string LikelyCause(const ReferenceLabelling& labelling, double pair_gap_mm) {
