@@ -19,7 +19,15 @@
 //      (widened), the pose whose skinned layout (core/jaw.h) puts the most
 //      markers within `inlier_mm` of a candidate point (then the smallest
 //      residual) wins, is refined on a finer grid, and ICP is redone with
-//      the posed layout; the names of step 3 come from it.
+//      the posed layout. Then the expression: the layout plus the
+//      principal components of the dataset's marker displacements, its
+//      weights started by a greedy search over the dataset's shapes and
+//      refined by ICP whose rounds fit pose and weights jointly and
+//      robustly (stabilization/head_fit.h); kept where it puts more
+//      markers on points than the rigid fit, and at least half the
+//      detections. The names of step 3 come from the layout chosen. A
+//      failure says its likely cause (the calibration, from the stereo
+//      rays' gaps; else the actor's markers or the reference frame).
 //   3. Names, per camera: each marker facing the camera is projected with
 //      the registered pose; a global assignment (tracking/assignment.h)
 //      matches projections to detections within a gate of `name_gate` x
@@ -54,6 +62,8 @@
 #include <array>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "core/actor.h"
 #include "core/jaw.h"
@@ -97,6 +107,13 @@ struct MarkerLayout {
   JawRig jaw_rig;
   std::vector<double> jaw_weights;
   std::array<double, 3> jaw_lower{}, jaw_upper{};
+  // The dataset's expressions at the markers: the principal components of
+  // its shapes' marker displacements (unskinned by each shape's jaw pose
+  // with a jaw rig), 3K x P, rows 3k..3k+2 marker k, each column scaled to
+  // the RMS of its coefficient over the dataset (mm); P = 0 without shapes.
+  Eigen::MatrixXd expression_basis;
+  // P x N: the dataset's shapes in that basis (column n: shape n).
+  Eigen::MatrixXd expression_shapes;
 
   // The positions with the jaw at `pose` (as they are without a rig).
   std::vector<Vec3> PosedPositions(const JawPose& pose) const;
@@ -122,6 +139,11 @@ struct ReferenceLabelling {
   Rigid3 helmet_from_head = Rigid3::Identity();
   JawPose jaw;                 // the jaw pose found (zero without a jaw rig)
   int candidate_points = 0;    // stereo pairs within the gap
+  double paired_share = 0;     // least over the cameras: share of its detections in a stereo pair
+  double median_gap_mm = 0;    // median over cam0's detections of the smallest ray gap to cam1's
+  int rigid_inliers = 0;       // markers on a point under the rigid (and jaw) registration
+  int expression_inliers = 0;  // the same with the dataset's expression fitted (step 2, last)
+  bool expression = false;     // the names come from the expressed layout
   int inliers = 0;             // markers matched by the registration
   double rms_mm = 0;           // registration residual over the inliers
 };

@@ -296,6 +296,11 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   }
   j["labelling"] = {{"ok", summary.labelling.ok},
                     {"candidate_points", summary.labelling.candidate_points},
+                    {"paired_share", summary.labelling.paired_share},
+                    {"median_gap_mm", summary.labelling.median_gap_mm},
+                    {"rigid_inliers", summary.labelling.rigid_inliers},
+                    {"expression_inliers", summary.labelling.expression_inliers},
+                    {"expression", summary.labelling.expression},
                     {"inliers", summary.labelling.inliers},
                     {"rms_mm", summary.labelling.rms_mm},
                     {"jaw",
