@@ -31,6 +31,13 @@ void FootageRenderOptions::Register(OptionFields* fields) {
   fields->Add("light_power", &light_power,
               "each head light's irradiance at 170 mm, head-on (fraction of full exposure)");
   fields->Add("light_offset", &light_offset, "head light offset beside each camera (mm)");
+  fields->Add("exposure", &exposure, "gain on the radiance before the sensor (1 = as lit)");
+  fields->Add("exposure_drift", &exposure_drift,
+              "relative change of the exposure from the first frame to the last (linear; -0.2 = "
+              "20% darker at the end)");
+  fields->Add("specular", &specular,
+              "skin's specular (Blinn-Phong) reflectance (0 = matte; the dots' paint stays matte)");
+  fields->Add("shininess", &shininess, "Blinn-Phong exponent of the skin's highlights");
   fields->Add("vignetting", &vignetting, "darkening at the image corner (0 = off)");
   fields->Add("read_noise", &read_noise, "std of the sensor read noise (8-bit levels; 0 = off)");
   fields->Add("shot_noise", &shot_noise, "shot-noise variance per level of signal (0 = off)");
@@ -61,6 +68,10 @@ bool FootageRenderOptions::Check() const {
     fail("ambient must be in [0, 2] and light_power in [0, 10]");
   }
   if (!(light_offset >= 0 && light_offset < 200)) fail("light_offset must be in [0, 200) mm");
+  if (!(exposure > 0 && exposure <= 10)) fail("exposure must be in (0, 10]");
+  if (!(exposure_drift > -1 && exposure_drift <= 10)) fail("exposure_drift must be in (-1, 10]");
+  if (!unit(specular)) fail("specular must be in [0, 1]");
+  if (!(shininess >= 1 && shininess <= 1000)) fail("shininess must be in [1, 1000]");
   if (!unit(vignetting)) fail("vignetting must be in [0, 1]");
   if (!(read_noise >= 0 && read_noise < 50) || !(shot_noise >= 0 && shot_noise < 10)) {
     fail("read_noise must be in [0, 50) and shot_noise in [0, 10)");
@@ -83,6 +94,10 @@ void FootageRenderOptions::SetClean() {
   shot_noise = 0;
   motion_blur_samples = 1;
   defocus_px = 0;
+}
+
+double FootageRenderOptions::ExposureAt(double shot_fraction) const {
+  return exposure * (1 + exposure_drift * shot_fraction);
 }
 
 namespace {
@@ -366,6 +381,24 @@ double FootageRenderer::Irradiance(const std::vector<Vec3>& lights, const Vec3& 
   return irradiance;
 }
 
+double FootageRenderer::Specular(const std::vector<Vec3>& lights, const Vec3& p,
+                                 const Vec3& n) const {
+  if (options_.specular <= 0) return 0;
+  const Vec3 to_eye = -p.normalized();
+  double radiance = 0;
+  for (const Vec3& light : lights) {
+    const Vec3 to_light = light - p;
+    const double dist2 = to_light.squaredNorm();
+    const Vec3 l = to_light / std::sqrt(dist2);
+    if (n.dot(l) <= 0 || n.dot(to_eye) <= 0) continue;
+    const double n_h = n.dot((l + to_eye).normalized());
+    if (n_h <= 0) continue;
+    radiance += options_.light_power * kLightReferenceMm * kLightReferenceMm / dist2 *
+                std::pow(n_h, options_.shininess);
+  }
+  return options_.specular * radiance;
+}
+
 std::vector<FootageRenderer::TagView> FootageRenderer::TagsInView(int camera) const {
   const HelmetCamera& hc = rig_.cameras[camera];
   const FisheyeCamera& cam = hc.camera;
@@ -599,11 +632,12 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
                           b[1] * st_.row(F_(f, 1)).transpose() +
                           b[2] * st_.row(F_(f, 2)).transpose();
           double albedo = Albedo(st);
+          double keep = 1;  // the skin's share of the pixel (the rest is paint)
           if (paint_dots) {
-            const double keep = DotTransmission(camera, x, y, f, p0, p1, p2, st);
+            keep = DotTransmission(camera, x, y, f, p0, p1, p2, st);
             albedo = options_.dot_albedo + (albedo - options_.dot_albedo) * keep;
           }
-          value = albedo * Irradiance(lights, p, n);
+          value = albedo * Irradiance(lights, p, n) + keep * Specular(lights, p, n);
         }
       }
       // Tags: a plate nearer than the face replaces it, blended at its edge.
@@ -616,7 +650,8 @@ void FootageRenderer::ShadeInto(int camera, const SceneState& state, bool paint_
 }
 
 ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& samples,
-                                   uint64_t noise_key, bool paint_dots) const {
+                                   uint64_t noise_key, bool paint_dots,
+                                   double shot_fraction) const {
   HMC_CHECK(camera >= 0 && camera < NumCameras() && !samples.empty());
   const FisheyeCamera& cam = rig_.cameras[camera].camera;
   ViewRender out;
@@ -636,9 +671,15 @@ ViewRender FootageRenderer::Render(int camera, const std::vector<SceneState>& sa
               main ? &out.stats : nullptr);
     if (samples.size() > 1) out.radiance += one / static_cast<double>(samples.size());
   }
-  cv::Mat signal = out.radiance;  // a copy only when defocus changes it
+  cv::Mat signal = out.radiance;  // a copy only when defocus or exposure changes it
   if (options_.defocus_px > 0) {
     cv::GaussianBlur(out.radiance, signal, cv::Size(0, 0), options_.defocus_px);
+  }
+  const double exposure = options_.ExposureAt(shot_fraction);
+  if (exposure != 1) {
+    cv::Mat exposed;  // a new buffer: signal may share out.radiance's
+    signal.convertTo(exposed, CV_32F, exposure);
+    signal = exposed;
   }
   out.image = RecordSensorImage(signal, options_.vignetting > 0 ? vignette_[camera] : cv::Mat(),
                                 options_.read_noise, options_.shot_noise, noise_key,

@@ -52,6 +52,10 @@ struct FootageRenderOptions {
   double ambient = 0.06;            // ambient light (fraction of full exposure)
   double light_power = 0.55;        // each head light's irradiance at 170 mm, head-on
   double light_offset = 22;         // head light offset beside each camera (mm)
+  double exposure = 1.0;            // gain on the radiance before the sensor (1 = as lit)
+  double exposure_drift = 0;        // relative change of the exposure from the first frame to the last (linear; -0.2 = 20% darker at the end)
+  double specular = 0;              // skin's specular (Blinn-Phong) reflectance (0 = matte; the dots' paint stays matte)
+  double shininess = 30;            // Blinn-Phong exponent of the skin's highlights
   double vignetting = 0.3;          // darkening at the image corner (0 = off)
   double read_noise = 1.0;          // std of the sensor read noise (8-bit levels; 0 = off)
   double shot_noise = 0.05;         // shot-noise variance per level of signal (0 = off)
@@ -65,6 +69,9 @@ struct FootageRenderOptions {
   bool Check() const;
   // No noise, vignetting, blur or defocus: the clean image of exact tests.
   void SetClean();
+  // The exposure at `shot_fraction` of the shot (0 = first frame, 1 = last):
+  // exposure * (1 + exposure_drift * shot_fraction).
+  double ExposureAt(double shot_fraction) const;
 };
 
 // One instant of the scene.
@@ -150,8 +157,11 @@ class FootageRenderer {
   // averaged over the shutter; depth and surface are those of the middle
   // sample). noise_key seeds the sensor noise (distinct per frame and
   // camera). paint_dots = false leaves the dots out (tests compare).
+  // shot_fraction: where the frame lies in the shot (0 = first, 1 = last),
+  // for the exposure's drift (FootageRenderOptions::ExposureAt).
   ViewRender Render(int camera, const std::vector<SceneState>& samples,
-                    uint64_t noise_key, bool paint_dots = true) const;
+                    uint64_t noise_key, bool paint_dots = true,
+                    double shot_fraction = 0) const;
 
   // Each marker's projection and visibility in `camera` for `state`;
   // `view` (rendered from the same state) supplies the occluder at the
@@ -211,6 +221,10 @@ class FootageRenderer {
   // Lambert irradiance at p with normal n: ambient plus each light with
   // inverse-square falloff (light_power at 170 mm head-on).
   double Irradiance(const std::vector<Vec3>& lights, const Vec3& p, const Vec3& n) const;
+  // The skin's specular radiance at p with normal n seen from the camera
+  // centre (Blinn-Phong: each light's irradiance times specular *
+  // (n.h)^shininess, h the half vector of light and view); 0 when matte.
+  double Specular(const std::vector<Vec3>& lights, const Vec3& p, const Vec3& n) const;
   // The tags wholly in front of the lens, with their pixel bounds.
   std::vector<TagView> TagsInView(int camera) const;
   // The fraction of skin albedo left by the painted dots at pixel (x, y),

@@ -41,6 +41,7 @@ void SynthShotOptions::Register(OptionFields* fields) {
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
   rig.Register(fields);
   render.Register(fields);
+  vary.Register(fields);
   fields->Add("nominal_mm", &nominal_mm,
               "write calibration.yaml with each camera centre moved by this (mm; the truth goes "
               "to calibration_true.yaml)");
@@ -55,7 +56,8 @@ void SynthShotOptions::Register(OptionFields* fields) {
 }
 
 bool SynthShotOptions::Check() const {
-  if (!performance.Check() || !rig.Check() || !render.Check()) return false;
+  if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check()) return false;
+  if (!VaryRender(render, vary, static_cast<uint64_t>(performance.seed)).Check()) return false;
   CHECK_OPTION(video == "ffv1" || video == "h264" || video == "png" || video == "none");
   CHECK_OPTION_IN(bundle_noise_mm, 0.0, 50.0);
   CHECK_OPTION_IN(contact_frames, 0, 32);
@@ -214,8 +216,11 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   EnsureDirectory(out_dir);
   const PerformanceOptions& perf = options.performance;
   const HelmetRig rig = MakeShotRig(model, options.rig);
-  FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig,
-                           options.render, static_cast<uint64_t>(perf.seed));
+  // The set of this seed (options.render itself when vary.on is false).
+  const FootageRenderOptions render_options =
+      VaryRender(options.render, options.vary, static_cast<uint64_t>(perf.seed));
+  FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig, render_options,
+                           static_cast<uint64_t>(perf.seed));
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
   const int num_cameras = renderer.NumCameras();
@@ -282,7 +287,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   summary.cameras = num_cameras;
   int64_t input_triangles = 0, split_triangles = 0, visible = 0, full = 0;
   const MatX3i& F = model.neutral().F;
-  const int blur = options.render.motion_blur_samples;
+  const int blur = render_options.motion_blur_samples;
   // Encoding runs beside the rendering: frame f's images are written while
   // frame f + 1 renders (FFV1 encoding is serial). One write task at a
   // time, in frame order, so the files are the same as written inline.
@@ -309,7 +314,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     } else if (blur > 1) {
       blur_positions.reserve(blur);
       for (int j = 0; j < blur; ++j) {
-        const double tau = (j / (blur - 1.0) - 0.5) * options.render.shutter;  // frames
+        const double tau = (j / (blur - 1.0) - 0.5) * render_options.shutter;  // frames
         const Eigen::VectorXd a_tau = ActivationsAt(performance, f + tau);
         blur_positions.push_back(model.Evaluate(a_tau));
         samples.push_back({&blur_positions.back(), HeadFromHelmetAt(perf, (f + tau) / perf.fps)});
@@ -333,7 +338,8 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
       const auto render_start = std::chrono::steady_clock::now();
       const uint64_t key = (static_cast<uint64_t>(perf.seed) << 32) ^
                            (static_cast<uint64_t>(frame) << 4) ^ static_cast<uint64_t>(c);
-      const ViewRender view = renderer.Render(c, samples, key);
+      const double shot_fraction = num_frames > 1 ? f / (num_frames - 1.0) : 0.0;
+      const ViewRender view = renderer.Render(c, samples, key, true, shot_fraction);
       const std::vector<DotTruth> dots = renderer.ProjectDots(c, state, view);
       summary.render_seconds +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
@@ -403,6 +409,10 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   SynthShotOptions copy = options;
   copy.Register(&used);
   WriteOptionsUsed(used, out_dir / "options_used.yaml");
+  if (options.vary.on) {
+    WriteFileAtomic(out_dir / "variation.yaml",
+                    VariationYaml(render_options, static_cast<uint64_t>(perf.seed)));
+  }
 
   const double total_views = static_cast<double>(num_frames) * num_cameras;
   summary.split_fraction =

@@ -13,6 +13,7 @@
 #include "synth/footage.h"
 #include "synth/helmet_rig.h"
 #include "synth/performance.h"
+#include "synth/shot_variation.h"
 
 namespace hmc {
 
@@ -26,6 +27,7 @@ struct SynthShotOptions {
   int threads = 0;                 // worker threads (0 = all cores)
   HelmetRigOptions rig;            // rig.*
   FootageRenderOptions render;     // render.*
+  ShotVariationOptions vary;       // vary.*: the render options drawn per seed (off by default)
   // Calibration tests (docs/calibration.md, "Synthetic harness"): with any
   // nominal_* > 0, calibration.yaml is a perturbed "nominal" rig and the true
   // one is written beside it as calibration_true.yaml.

@@ -446,5 +446,44 @@ TEST(FootageTest, DeterministicAndIndependentOfThreadCount) {
   EXPECT_GT(cv::norm(first, third, cv::NORM_INF), 0) << "the noise key must change the noise";
 }
 
+// Exposure scales the recorded levels (its drift reaches exposure * (1 +
+// drift) at the shot's last frame) and leaves the radiance alone; the
+// skin's specular highlights only add light.
+TEST(FootageTest, ExposureDriftAndSpecularity) {
+  Scene scene = MakeScene(7, 320, 256);
+  const MatX3d X = scene.model->neutral().V;
+  const SceneState state{&X, Rigid3::Identity()};
+  auto render = [&](const FootageRenderOptions& options, double shot_fraction) {
+    const FootageRenderer renderer(scene.model->neutral(), scene.model->face().st,
+                                   scene.markers, scene.rig, options, 7);
+    return renderer.Render(0, {state}, 1, true, shot_fraction);
+  };
+  const ViewRender lit = render(scene.options, 0);
+  FootageRenderOptions half = scene.options;
+  half.exposure = 0.5;
+  const ViewRender dim = render(half, 0);
+  EXPECT_EQ(cv::norm(lit.radiance, dim.radiance, cv::NORM_INF), 0);
+  cv::Mat expected;
+  lit.image.convertTo(expected, CV_32F, 0.5);
+  cv::Mat got;
+  dim.image.convertTo(got, CV_32F);
+  EXPECT_LE(cv::norm(expected, got, cv::NORM_INF), 1.0) << "half the exposure, half the level";
+  EXPECT_GT(cv::mean(lit.image)[0], 10);
+
+  FootageRenderOptions drifting = scene.options;
+  drifting.exposure_drift = -0.5;
+  EXPECT_EQ(cv::norm(render(drifting, 1).image, dim.image, cv::NORM_INF), 0);
+  EXPECT_EQ(cv::norm(render(drifting, 0).image, lit.image, cv::NORM_INF), 0);
+
+  FootageRenderOptions glossy = scene.options;
+  glossy.specular = 0.2;
+  const ViewRender shiny = render(glossy, 0);
+  cv::Mat added = shiny.radiance - lit.radiance;
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(added, &lo, &hi);
+  EXPECT_GE(lo, 0);
+  EXPECT_GT(hi, 0.01) << "no highlight on the skin";
+}
+
 }  // namespace
 }  // namespace hmc

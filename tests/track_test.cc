@@ -157,6 +157,33 @@ TEST_F(TrackTest, LabelsAReferenceFrameWithTheJawOpen) {
   EXPECT_GE(open, 1) << "no seed opened the jaw 5 degrees at frame 1: the test tests nothing";
 }
 
+// Shots whose set is drawn from the seed (`--vary.on true`, as every
+// configs/synth_shot_*.yaml preset; docs/footage.md, "Varied sets"): two
+// seeds draw different sets (exposure, its drift, vignetting, skin,
+// specularity, dot size and darkness, blur, noise), and the tracker names
+// and centres their dots as on the default set (the same bars as
+// FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds).
+TEST_F(TrackTest, TracksShotsOfVariedSets) {
+  std::set<std::string> sets;
+  for (int seed = 11; seed <= 12; ++seed) {
+    const fs::path shot = Shot(fmt::format("varied{}", seed), seed, 4, "--vary.on true");
+    ASSERT_TRUE(fs::exists(shot / "variation.yaml"));
+    const std::string set = ReadFile(shot / "variation.yaml");
+    sets.insert(set.substr(set.find("render:")));
+    const fs::path out = dir_ / fmt::format("track_varied{}", seed) / "tracks_2d.csv";
+    const CliResult r = Track(shot, out);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const TrackScore s = ScoreTracks(ReadTracks2dCsv(out), ReadDots2dCsv(shot / "dots_2d.csv"));
+    std::printf("varied seed %d: %s\n%s", seed, s.BriefReport().c_str(),
+                set.c_str());
+    EXPECT_LE(s.median_px, 0.05) << "seed " << seed;
+    EXPECT_LE(s.p95_px, 0.15) << "seed " << seed;
+    EXPECT_GE(s.FullRecall(), 0.9) << "seed " << seed;
+    EXPECT_LE(s.WrongFraction(), 0.01) << "seed " << seed;
+  }
+  EXPECT_EQ(sets.size(), 2u) << "two seeds drew the same set";
+}
+
 // Paints skin over one named dot in frames 3 and 4 of cam0: it has no row
 // there, and is named again (at the clean run's place) from frame 5 on.
 TEST_F(TrackTest, AHiddenDotIsNotReportedAndIsReacquired) {
