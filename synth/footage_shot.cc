@@ -399,7 +399,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   OptionFields used;
   SynthShotOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, out_dir / "options_used.yaml");
+  WriteOptionsUsed(used, out_dir / "options_used.yaml", "synth shot");
 
   const double total_views = static_cast<double>(num_frames) * num_cameras;
   summary.split_fraction =

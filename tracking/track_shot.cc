@@ -240,7 +240,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   OptionFields used;
   TrackOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml");
+  WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml", "track");
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   nlohmann::json j;
