@@ -114,6 +114,10 @@ struct CameraFrameTracks {
   int reacquired = 0;          // names given to dots that were lost or never seen
   int swaps_caught = 0;        // names dropped by the stereo check
   bool skipped = false;        // the camera's image was missing
+  // Markers left unnamed that face the camera squarely, placed by named
+  // neighbours, with no detection where their dot should be: not painted,
+  // or painted elsewhere (marker_tracker.cc, NameFromLayout).
+  std::vector<int> vacant;
 };
 
 struct ReferenceLabelling {
@@ -159,9 +163,12 @@ class MarkerTracker {
              std::vector<int>* detection_of) const;
   // Names unnamed markers of camera c from the layout `positions` (head
   // space) under helmet_from_head_ (file comment, step 3), in rounds.
+  // With `vacant`, adds the markers whose place holds no dot
+  // (CameraFrameTracks::vacant).
   void NameFromLayout(int c, const std::vector<Vec3>& positions,
                       const std::vector<DotDetection>& detections, double gate_fraction,
-                      bool allow_uncorrected, std::vector<int>* detection_of) const;
+                      bool allow_uncorrected, std::vector<int>* detection_of,
+                      std::vector<int>* vacant = nullptr) const;
   // helmet_from_head_ from the markers named in both cameras (trimmed fit),
   // then jaw_ and positions_ (with a jaw rig).
   void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
