@@ -255,6 +255,7 @@ nlohmann::json Workspace::RunStage(
     CheckStillThere();
   } catch (...) {
     fs::remove_all(partial, ec);
+    CheckStillThere();  // "cannot write" from a command: say why
     throw;
   }
   const double seconds =

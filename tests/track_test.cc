@@ -308,11 +308,12 @@ TEST_F(TrackTest, MarkersNeverFoundOverTheShotAreReported) {
   int unpainted = 0;
   for (const std::string& name : never) unpainted += removed.count(name);
   EXPECT_GE(unpainted, 25) << summary["never_found"].dump();
-  // Missing dots (warned): only unpainted markers, most of them, the first
+  // Missing dots (warned): only unpainted markers, at least half of them
+  // (16 here; not those that face no camera within 60 degrees), the first
   // ones named in the warning.
   const std::vector<std::string> missing = summary["missing_dots"];
   for (const std::string& name : missing) EXPECT_EQ(removed.count(name), 1u) << name;
-  EXPECT_GE(missing.size(), 20u) << summary["missing_dots"].dump();
+  EXPECT_GE(missing.size(), 15u) << summary["missing_dots"].dump();
   if (!missing.empty()) {
     EXPECT_NE(r.err.find(missing.front()), std::string::npos) << r.err;
   }

@@ -91,6 +91,7 @@ struct MarkerLayout {
   std::vector<Vec3> positions;            // head space (mm)
   std::vector<Vec3> normals;              // unit surface normals
   std::vector<std::vector<int>> neighbours;  // nearest markers on the neutral, nearest first
+  std::vector<double> border_mm;  // distance to the neutral mesh's border (lips' opening, rim; mm)
   // The jaw: the actor's rig (without its per-vertex weights), each
   // marker's skinning weight (empty: no jaw rig), and the range of the
   // dataset's jaw poses widened by a quarter of it (at least 1 deg / mm).
