@@ -131,7 +131,7 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
                        [&](int f) { return frames.labels[f]; });
       OptionFields used;
       options->Register(&used);
-      WriteOptionsUsed(used, dir / "options_used.yaml");
+      WriteOptionsUsed(used, dir / "options_used.yaml", "actor frames");
     });
     if (!held.empty()) {
       spdlog::info("actor frames: {} held-out units: {}", held.size(),

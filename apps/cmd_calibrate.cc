@@ -59,8 +59,8 @@ HMC_COMMAND(Calibrate, "", "calibrate",
     PrepareOutputPaths({{out_path, "--out"},
                         {*report, "--report"},
                         {*export_kalibr, "--export-kalibr"},
-                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
-                        {out_dir / "summary.json", "summary.json beside --out"}},
+                        SideFile(out_dir / "options_used.yaml", "calibrate"),
+                        SideFile(out_dir / "summary.json", "calibrate")},
                        {{*shot, "--shot"},
                         {*nominal, "--calibration"},
                         {*import_kalibr, "--import-kalibr"},
@@ -120,7 +120,7 @@ HMC_COMMAND(Calibrate, "", "calibrate",
     }
     WriteCalibration(out_path, result.rig);
     if (!export_kalibr->empty()) WriteKalibrCamchain(*export_kalibr, result.rig);
-    WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml");
+    WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml", "calibrate");
     WriteFileAtomic(out_dir / "summary.json", CalibrationReportJson(result));  // last
     spdlog::info("calibrate: {} -> {}", s.BriefReport(), *out);
     return 0;

@@ -87,7 +87,7 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
       input.out = dir;
       input.picture_frames = cmd.frames;
       output = RunEval(input, cmd.options);
-      WriteOptionsUsed(binding.fields(), dir / "options_used.yaml");
+      WriteOptionsUsed(binding.fields(), dir / "options_used.yaml", "eval");
     });
   }
   if (cmd.json) {

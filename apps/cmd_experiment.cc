@@ -40,7 +40,7 @@ HMC_COMMAND(Experiment, "", "experiment",
     WriteFolderAtomic(*out, "hmc experiment", [&](const std::filesystem::path& dir) {
       input->out = dir;
       output = RunExperiment(*input, *options);
-      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml");
+      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml", "experiment");
     });
     spdlog::info("experiment: {} -> {}", output.BriefReport(),
                  (std::filesystem::path(*out) / "results.md").string());

@@ -38,7 +38,12 @@ HMC_COMMAND(Jaw, "", "jaw",
   return [=] {
     binding->Apply();
     RequireValid(*options, "jaw");
-    PrepareOutputPaths({{*out, "--out"}},
+    // Beside jaw.csv, named after its stem (WriteJawOutput).
+    const std::filesystem::path out_path(*out);
+    const std::filesystem::path stem = out_path.parent_path() / out_path.stem();
+    PrepareOutputPaths({{out_path, "--out"},
+                        SideFile(stem.string() + "_options_used.yaml", "jaw"),
+                        SideFile(stem.string() + "_summary.json", "jaw")},
                        {{*bundles, "--bundles"}, {*actor_dir, "--actor"}, {*truth, "--truth"}});
     StageTimer timer("jaw");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);

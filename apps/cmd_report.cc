@@ -38,7 +38,7 @@ HMC_COMMAND(Report, "", "report",
       ReportInput in = *input;
       in.out = dir.string();
       summary = WriteRunReport(in, *options);
-      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml");
+      WriteOptionsUsed(binding->fields(), dir / "options_used.yaml", "report");
     });
     spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
     return 0;

@@ -174,7 +174,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
       out_path.has_parent_path() ? out_path.parent_path()
                                  : std::filesystem::path(".");
   PrepareOutputPaths({{cmd.out, "--out", format == SequenceFormat::kObjFolder},
-                      {parent / "options_used.yaml", "options_used.yaml beside --out"},
+                      SideFile(parent / "options_used.yaml", "solve"),
                       {cmd.diagnostics_file, "--diagnostics"},
                       {cmd.topology_file, "--topology"}},
                      {{cmd.actor_dir, "--actor"},
@@ -227,7 +227,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   seq.fps = cmd.fps;
   seq.topology = actor.neutral;
   WriteMeshSequence(cmd.out, seq);
-  WriteOptionsUsed(binding.fields(), parent / "options_used.yaml");
+  WriteOptionsUsed(binding.fields(), parent / "options_used.yaml", "solve");
   if (!cmd.topology_file.empty()) WriteObj(cmd.topology_file, actor.neutral);
   if (!cmd.diagnostics_file.empty()) {
     WriteDiagnostics(cmd.diagnostics_file, actor, cmd.options.method, solvers.lgi_model(), result,

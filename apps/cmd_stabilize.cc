@@ -38,7 +38,11 @@ HMC_COMMAND(Stabilize, "", "stabilize",
   return [=] {
     binding->Apply();
     RequireValid(*options, "stabilize");
-    PrepareOutputPaths({{*out, "--out", true}},
+    const std::filesystem::path out_dir(*out);
+    PrepareOutputPaths({{out_dir, "--out", true},
+                        {out_dir / "options_used.yaml", "options_used.yaml in --out", false,
+                         "stabilize"},
+                        {out_dir / "summary.json", "summary.json in --out", false, "stabilize"}},
                        {{*bundles, "--bundles"}, {*actor_dir, "--actor"}, {*truth, "--truth"}});
     StageTimer timer("stabilize");
     const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);

@@ -138,11 +138,14 @@ HMC_COMMAND(Triangulate, "", "triangulate",
     const std::filesystem::path out_path(*out);
     const std::filesystem::path out_dir =
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
+    const std::filesystem::path rays_path =
+        rays->empty() ? out_dir / "rays.csv" : std::filesystem::path(*rays);
     PrepareOutputPaths({{out_path, "--out"},
                         {*diagnostics, "--diagnostics"},
-                        {*rays, "--rays"},
-                        {out_dir / "options_used.yaml", "options_used.yaml beside --out"},
-                        {out_dir / "summary.json", "summary.json beside --out"}},
+                        rays->empty() ? SideFile(rays_path, "triangulate", kRaysCsvHeader)
+                                      : OutputFlag{rays_path, "--rays"},
+                        SideFile(out_dir / "options_used.yaml", "triangulate"),
+                        SideFile(out_dir / "summary.json", "triangulate")},
                        {{*tracks_path, "--tracks"},
                         {*calibration, "--calibration"},
                         {*truth, "--truth"},
@@ -159,10 +162,9 @@ HMC_COMMAND(Triangulate, "", "triangulate",
     const TriangulateOutput result = RunTriangulate(
         {&rig, &tracks, *tracks_path, actor_dir->empty() ? nullptr : &offsets}, *options);
     WriteBundlesCsv(out_path, result.bundles);
-    WriteRaysCsv(rays->empty() ? out_dir / "rays.csv" : std::filesystem::path(*rays),
-                 result.rays);
+    WriteRaysCsv(rays_path, result.rays);
     if (!diagnostics->empty()) WriteTriangulationCsv(*diagnostics, rig, result.records);
-    WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml");
+    WriteOptionsUsed(binding->fields(), out_dir / "options_used.yaml", "triangulate");
 
     const TriangulateSummary& s = result.summary;
     nlohmann::json gated = nlohmann::json::array();

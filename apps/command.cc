@@ -1,14 +1,20 @@
 #include "apps/command.h"
 
 #include <algorithm>
+#include <fstream>
 #include <map>
 #include <vector>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "core/error.h"
 #include "core/file_util.h"
 
 namespace hmc {
 namespace {
+
+namespace fs = std::filesystem;
 
 struct Registered {
   const char* group;
@@ -61,11 +67,76 @@ void AddRegisteredCommands(CLI::App* app, CommandRun* run) {
   }
 }
 
+namespace {
+
+// hmc's commands by their full names ("track", "synth shot").
+std::vector<std::string> CommandNames() {
+  std::vector<std::string> names;
+  for (const Registered& command : Registry()) {
+    const std::string group = command.group;
+    names.push_back(group.empty() ? command.name : group + " " + command.name);
+  }
+  return names;
+}
+
+// The hmc command whose mark the side file `side.path` carries (SideFile in
+// command.h), "" when it carries none.
+std::string SideFileWriter(const OutputFlag& side) {
+  std::error_code ec;
+  if (!fs::is_regular_file(side.path, ec)) return "";
+  const std::vector<std::string> names = CommandNames();
+  if (side.path.extension() == ".json") {
+    std::string text;
+    try {
+      text = ReadFile(side.path);
+    } catch (const InputError&) {
+      return "";
+    }
+    const nlohmann::json json = nlohmann::json::parse(text, nullptr, false);
+    if (!json.is_object() || !json.contains("stage") || !json["stage"].is_string()) return "";
+    const std::string stage = json["stage"].get<std::string>();
+    return std::find(names.begin(), names.end(), stage) != names.end() ? stage : "";
+  }
+  std::ifstream in(side.path);
+  std::string first;
+  std::getline(in, first);
+  if (!side.header.empty()) return first == side.header ? side.side_of : "";
+  for (const std::string& name : names) {
+    if (first == OptionsUsedMark(name)) return name;
+  }
+  return "";
+}
+
+void CheckSideFile(const OutputFlag& side) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(side.path, ec))) return;
+  const std::string writer = SideFileWriter(side);
+  if (writer.empty()) {
+    ThrowInputError(side.path, 0,
+                    "{}: a file hmc did not write (it carries no mark of an hmc command); hmc {} "
+                    "would replace it, so it stops here and leaves it: move the file, or give "
+                    "--out in another folder",
+                    side.flag, side.side_of);
+  }
+  if (writer != side.side_of) {
+    spdlog::warn("{}: replaces the {} that hmc {} wrote", side.path.string(),
+                 side.path.filename().string(), writer);
+  }
+}
+
+}  // namespace
+
+OutputFlag SideFile(const fs::path& path, const std::string& command, const std::string& header) {
+  return {path, path.filename().string() + " beside --out", false, command, header};
+}
+
 void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
                         std::initializer_list<InputPath> inputs) {
   const std::vector<InputPath> in(inputs);
   for (const OutputFlag& o : outputs) {
-    if (!o.path.empty()) PrepareOutputPath(o.path, o.flag, o.folder, in);
+    if (o.path.empty()) continue;
+    PrepareOutputPath(o.path, o.flag, o.folder, in);
+    if (!o.side_of.empty()) CheckSideFile(o);
   }
 }
 

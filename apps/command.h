@@ -46,13 +46,30 @@ struct OutputFlag {
   std::filesystem::path path;  // empty: the flag was not given, skipped
   std::string flag;            // "--out", named in the error
   bool folder = false;         // a folder output (else a file)
+  // A side file (SideFile below) of this command ("track"); empty for an
+  // output the user named.
+  std::string side_of = "";
+  std::string header = "";  // a side CSV's fixed header line: its mark
 };
+
+// A file a command names itself and writes beside --out, in a folder the
+// user chose (summary.json, options_used.yaml, jaw_summary.json, rays.csv
+// when --rays is not given): flag "NAME beside --out". It replaces only a
+// file of that name that hmc wrote, known by its mark: a JSON object whose
+// "stage" names an hmc command, an options_used.yaml whose first line is
+// OptionsUsedMark (core/options.h), a CSV whose first line is `header`.
+// Anything else there is the user's: refused before any work, naming it,
+// and left as it was (docs/reliability.md, "Side files"). Replacing
+// another command's side file is warned.
+OutputFlag SideFile(const std::filesystem::path& path, const std::string& command,
+                    const std::string& header = "");
 
 // What every command that writes calls before it reads or computes
 // anything (docs/reliability.md), so that a bad output path costs no work
 // and replaces no earlier output: PrepareOutputPath (core/file_util.h)
 // for each given flag, with the overlap check against the command's
-// `inputs` (an output that is an input or lies in an input folder).
+// `inputs` (an output that is an input or lies in an input folder), and
+// the ownership check of each side file (SideFile).
 // Throws InputError naming the path and the flag.
 void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
                         std::initializer_list<InputPath> inputs = {});

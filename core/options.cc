@@ -266,10 +266,15 @@ YAML::Node OptionFields::ToYaml() const {
 }
 
 void WriteOptionsUsed(const OptionFields& fields,
-                      const std::filesystem::path& file) {
+                      const std::filesystem::path& file, const std::string& command) {
   YAML::Emitter out;
   out << fields.ToYaml();
-  WriteFileAtomic(file, std::string(out.c_str()) + "\n");
+  const std::string mark = command.empty() ? "" : OptionsUsedMark(command) + "\n";
+  WriteFileAtomic(file, mark + out.c_str() + "\n");
+}
+
+std::string OptionsUsedMark(const std::string& command) {
+  return "# options used by hmc " + command + " (docs/formats.md)";
 }
 
 }  // namespace hmc

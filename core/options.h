@@ -134,8 +134,16 @@ void RequireValid(const Options& options, const char* what) {
   }
 }
 
-// Writes fields.ToYaml() to `file` atomically.
+// Writes fields.ToYaml() to `file` atomically. With a `command` ("track"),
+// the first line is OptionsUsedMark(command): an options_used.yaml written
+// beside a command's output, in a folder the user chose, carries the mark
+// that lets a later run replace it as hmc's own (docs/reliability.md, "Side
+// files"); a YAML comment, so the file still loads as a --config.
 void WriteOptionsUsed(const OptionFields& fields,
-                      const std::filesystem::path& file);
+                      const std::filesystem::path& file,
+                      const std::string& command = "");
+
+// "# options used by hmc COMMAND (docs/formats.md)".
+std::string OptionsUsedMark(const std::string& command);
 
 }  // namespace hmc

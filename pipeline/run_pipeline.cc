@@ -376,6 +376,7 @@ RunSummary Pipeline::Run() {
       summary.stages.push_back(run);
       continue;
     }
+    work_.CheckStillThere();  // before the stage's inputs in it are hashed
     const StagePlan plan = Plan(stage);
     if (i < forced && work_.IsComplete(plan.key)) {
       spdlog::info("run: {} complete (inputs and options unchanged): kept", stage);

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -224,11 +225,24 @@ void Workspace::Invalidate(const std::string& stage) const {
   if (ec) ThrowInputError(StageDir(stage), 0, "cannot remove: {}", ec.message());
 }
 
+void Workspace::CheckStillThere() const {
+  struct stat held {}, now {};
+  const bool same = ::fstat(lock_fd_, &held) == 0 && ::stat((root_ / kLock).c_str(), &now) == 0 &&
+                    held.st_dev == now.st_dev && held.st_ino == now.st_ino;
+  if (!same) {
+    ThrowInputError(root_, 0,
+                    "the workspace disappeared during the run (a network share or drive that "
+                    "went away, or the folder moved): nothing more is written; the stages "
+                    "completed before are kept there -- run again once it is back");
+  }
+}
+
 nlohmann::json Workspace::RunStage(
     const StageKey& key, const std::function<nlohmann::json(const fs::path&)>& body) {
   const fs::path partial = root_ / ("." + key.stage + ".partial");
   const fs::path final_dir = StageDir(key.stage);
   std::error_code ec;
+  CheckStillThere();
   fs::remove_all(partial, ec);  // a killed earlier run's leftovers
   EnsureDirectory(partial);
   nlohmann::json report;
@@ -236,8 +250,12 @@ nlohmann::json Workspace::RunStage(
   try {
     report = body(partial);
     if (!report.is_object()) report = nlohmann::json{{"value", report}};
+    // The stage's command recreates a folder that went away: what it wrote
+    // then is not in the workspace.
+    CheckStillThere();
   } catch (...) {
     fs::remove_all(partial, ec);
+    CheckStillThere();  // "cannot write" from a command: say why
     throw;
   }
   const double seconds =
@@ -269,6 +287,12 @@ nlohmann::json Workspace::RunStage(
                                   {"report", report},
                                   {"outputs", outputs}};
   WriteFileAtomic(partial / "summary.json", summary.dump(1) + "\n");
+  try {
+    CheckStillThere();
+  } catch (...) {
+    fs::remove_all(partial, ec);
+    throw;
+  }
   // Swap: a kill between the two steps leaves no WORK/<stage>/ (redone next
   // time) and the complete partial folder (removed next time).
   fs::remove_all(final_dir, ec);

@@ -93,6 +93,14 @@ class Workspace {
   // Removes WORK/<stage>/ (to force a redo) and any partial folder.
   void Invalidate(const std::string& stage) const;
 
+  // Throws InputError naming WORK unless WORK is still the folder this
+  // object claimed (its lock file the one held open). A workspace on a
+  // share or drive that goes away leaves an empty local folder at its
+  // path, where the stage's command would recreate its folders and a
+  // stage would be written "complete" (issue 45, second campaign). Called
+  // before each stage and by RunStage before and after the stage's work.
+  void CheckStillThere() const;
+
  private:
   std::filesystem::path root_;
   int lock_fd_ = -1;

@@ -181,5 +181,47 @@ TEST(WorkspaceTest, AWorkspaceInUseIsRefusedNamingThePid) {
   EXPECT_EQ(ReadFile(root / ".hmc_lock"), "");
 }
 
+// Issue 45, second campaign: a workspace on a share that goes away mid-run
+// leaves an empty local folder at its path. The stage's command recreates
+// its folder there; the stage must not be written "complete" there, and
+// the run resumes once the share is back.
+TEST(WorkspaceTest, AWorkspaceThatDisappearsMidStageStopsAndResumesWhenBack) {
+  TempDir dir;
+  const fs::path root = dir.path() / "work";
+  const fs::path away = dir.path() / "share_gone";
+  Workspace work(root, PipelineStages());
+  work.RunStage(Key("a"), [](const fs::path& d) {
+    WriteFileAtomic(d / "out.txt", "a");
+    return nlohmann::json::object();
+  });
+  std::string error = "no error";
+  try {
+    work.RunStage(Key("b"), [&](const fs::path& d) {
+      fs::rename(root, away);         // the share goes
+      fs::create_directories(root);   // its mount point, empty
+      EnsureDirectory(d);             // as a stage's command does
+      WriteFileAtomic(d / "out.txt", "b");
+      return nlohmann::json::object();
+    });
+  } catch (const InputError& e) {
+    error = e.what();
+  }
+  EXPECT_NE(error.find(root.string() + ": the workspace disappeared during the run"),
+            std::string::npos)
+      << error;
+  EXPECT_TRUE(fs::is_empty(root));  // nothing written "complete" in its place
+  EXPECT_THROW(work.CheckStillThere(), InputError);
+  // The share comes back: its complete stage is there, the run goes on.
+  fs::remove(root);
+  fs::rename(away, root);
+  EXPECT_NO_THROW(work.CheckStillThere());
+  EXPECT_TRUE(work.IsComplete(Key("a")));
+  work.RunStage(Key("b"), [](const fs::path& d) {
+    WriteFileAtomic(d / "out.txt", "b");
+    return nlohmann::json::object();
+  });
+  EXPECT_EQ(ReadFile(work.StageDir("track") / "out.txt"), "b");
+}
+
 }  // namespace
 }  // namespace hmc

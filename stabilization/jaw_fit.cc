@@ -455,7 +455,7 @@ void WriteJawOutput(const JawOutput& output, const JawOptions& options,
   OptionFields used;
   JawOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, dir / (stem + "_options_used.yaml"));
+  WriteOptionsUsed(used, dir / (stem + "_options_used.yaml"), "jaw");
   nlohmann::json summary;
   summary["stage"] = "jaw";
   summary["frames"] = output.frames.size();

@@ -454,7 +454,7 @@ void WriteStabilizeOutput(const StabilizeOutput& output,
   OptionFields used;
   StabilizeOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, dir / "options_used.yaml");
+  WriteOptionsUsed(used, dir / "options_used.yaml", "stabilize");
 
   nlohmann::json summary;
   summary["stage"] = "stabilize";

@@ -408,7 +408,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   OptionFields used;
   SynthShotOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, out_dir / "options_used.yaml");
+  WriteOptionsUsed(used, out_dir / "options_used.yaml", "synth shot");
   if (options.vary.on) {
     WriteFileAtomic(out_dir / "variation.yaml",
                     VariationYaml(render_options, static_cast<uint64_t>(perf.seed)));

@@ -14,6 +14,7 @@
 #include "core/mesh_sequence.h"
 #include "synth/footage.h"
 #include "core/mesh.h"
+#include "core/options.h"
 #include "tests/cli_runner.h"
 #include "tests/small_actor.h"
 
@@ -584,6 +585,88 @@ TEST(ReliabilityStudio, WorkspacesAndOutputsNeverTakeUsersOrInputsFiles) {
   EXPECT_NE(lone.err.find((dir / "one_camera.yaml").string() + ": hmc run needs a rig of two cameras"),
             std::string::npos)
       << lone.err;
+  fs::remove_all(dir);
+}
+
+
+// Issue 45, item 7 and "hmc run never overwrites a file it did not write":
+// the side files a command names itself beside --out (summary.json,
+// options_used.yaml, jaw_*.json/yaml, a default rays.csv) replace only a
+// file of that name that hmc wrote. A user's file there is refused before
+// any work, named, and left as it was; a rerun over the command's own
+// side files, or over another command's, goes on.
+TEST(ReliabilityStudio, SideFilesReplaceOnlyWhatHmcWrote) {
+  const Fixture f = MakeFixture("hmc_rel_side_files", 1);
+  const fs::path& dir = f.dir;
+  const std::string in = (dir / "bundles.csv").string();
+  const std::string a = (dir / "actor").string();
+  // {command line with {} for the output folder, the side file, its mark}
+  struct Case {
+    std::string line;
+    std::string side;
+  };
+  const std::vector<Case> cases = {
+      {"track --shot " + in + " --calibration " + in + " --actor " + a + " --out {}/t.csv",
+       "summary.json"},
+      {"track --shot " + in + " --calibration " + in + " --actor " + a + " --out {}/t.csv",
+       "options_used.yaml"},
+      {"calibrate --shot " + in + " --calibration " + in + " --out {}/c.yaml", "summary.json"},
+      {"calibrate --shot " + in + " --calibration " + in + " --out {}/c.yaml",
+       "options_used.yaml"},
+      {"triangulate --tracks " + in + " --calibration " + in + " --out {}/b.csv",
+       "summary.json"},
+      {"triangulate --tracks " + in + " --calibration " + in + " --out {}/b.csv",
+       "options_used.yaml"},
+      {"triangulate --tracks " + in + " --calibration " + in + " --out {}/b.csv", "rays.csv"},
+      {"stabilize --bundles " + in + " --actor " + a + " --out {}", "summary.json"},
+      {"stabilize --bundles " + in + " --actor " + a + " --out {}", "options_used.yaml"},
+      {"jaw --bundles " + in + " --actor " + a + " --out {}/jaw.csv", "jaw_summary.json"},
+      {"jaw --bundles " + in + " --actor " + a + " --out {}/jaw.csv", "jaw_options_used.yaml"},
+      {"solve --actor " + a + " --bundles " + in + " --out {}/m.pc2", "options_used.yaml"},
+  };
+  // A user's files: notes, a JSON of another tool (its "stage" no hmc
+  // command), a CSV with rays.csv's columns but not its header line.
+  const std::vector<std::string> users = {
+      "my notes\n", "{\"stage\": \"final\", \"client\": \"approved\"}\n",
+      "frame, marker, camera, ox, oy, oz, dx, dy, dz\n"};
+  int n = 0;
+  for (const Case& c : cases) {
+    for (const std::string& content : users) {
+      const fs::path folder = dir / fmt::format("user{}", n++);
+      fs::create_directories(folder);
+      WriteFileAtomic(folder / c.side, content);
+      std::string line = c.line;
+      line.replace(line.find("{}"), 2, folder.string());
+      const CliResult r = RunHmc(line, dir);
+      EXPECT_EQ(r.exit_code, 2) << line << ": " << r.err;
+      EXPECT_NE(r.err.find((folder / c.side).string() + ": " + c.side +
+                           (c.line.rfind("stabilize", 0) == 0 ? " in --out" : " beside --out") +
+                           ": a file hmc did not write"),
+                std::string::npos)
+          << line << ": " << r.err;
+      EXPECT_EQ(ReadFile(folder / c.side), content) << line;
+      EXPECT_EQ(Listing(folder), std::vector<std::string>{c.side}) << line;
+    }
+  }
+  // Over its own side files and another command's, in one folder: twice.
+  const fs::path out = dir / "out";
+  for (int round = 0; round < 2; ++round) {
+    const std::vector<std::string> lines = {
+        fmt::format("stabilize --bundles '{}' --actor '{}' --out '{}'", in, a, out.string()),
+        fmt::format("jaw --bundles '{}' --actor '{}' --out '{}'", (out / "bundles.csv").string(),
+                    a, (out / "jaw.csv").string()),
+        fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' {}", a,
+                    (out / "bundles.csv").string(), (out / "jaw.csv").string(),
+                    (out / "mesh.pc2").string(), kCommon)};
+    for (const std::string& line : lines) {
+      const CliResult r = RunHmc(line, dir);
+      EXPECT_EQ(r.exit_code, 0) << round << ": " << line << ": " << r.err;
+    }
+  }
+  // solve replaced the options_used.yaml of stabilize, and said so.
+  EXPECT_EQ(ReadFile(out / "options_used.yaml").rfind(OptionsUsedMark("solve") + "\n", 0), 0u);
+  EXPECT_EQ(nlohmann::json::parse(ReadFile(out / "summary.json"))["stage"], "stabilize");
+  EXPECT_EQ(nlohmann::json::parse(ReadFile(out / "jaw_summary.json"))["stage"], "jaw");
   fs::remove_all(dir);
 }
 

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <random>
 #include <unordered_map>
 
@@ -62,6 +64,27 @@ MarkerLayout MakeMarkerLayout(const Actor& actor, int neighbours) {
     layout.positions.push_back(EvaluateSurfacePoint(marker.point, actor.neutral.F, actor.neutral.V));
     const Vec3 n = EvaluateSurfacePoint(marker.point, actor.neutral.F, normals);
     layout.normals.push_back(n.norm() > 0 ? Vec3(n.normalized()) : Vec3(0, 0, 1));
+  }
+  // The border of the neutral mesh: edges of one triangle (the lips'
+  // opening, the mask's rim).
+  std::map<std::pair<int, int>, int> edge_faces;
+  const MatX3i& F = actor.neutral.F;
+  for (int f = 0; f < F.rows(); ++f) {
+    for (int i = 0; i < 3; ++i) {
+      const int a = F(f, i), b = F(f, (i + 1) % 3);
+      ++edge_faces[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  std::vector<Vec3> border;
+  for (const auto& [edge, faces] : edge_faces) {
+    if (faces != 1) continue;
+    border.push_back(actor.neutral.V.row(edge.first).transpose());
+    border.push_back(actor.neutral.V.row(edge.second).transpose());
+  }
+  for (const Vec3& p : layout.positions) {
+    double d = std::numeric_limits<double>::infinity();
+    for (const Vec3& b : border) d = std::min(d, (b - p).norm());
+    layout.border_mm.push_back(d);
   }
   if (actor.jaw_rig) {
     layout.jaw_rig = *actor.jaw_rig;

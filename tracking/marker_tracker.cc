@@ -79,6 +79,16 @@ namespace {
 constexpr double kJawLateralReachDeg = 3;
 constexpr double kJawProtrudeReachMm = 2;
 
+// A dot seen within 60 degrees of its normal shows its whole disc (the
+// synthetic shots' "full" dots, docs/formats.md): where such a dot is
+// expected and no detection is, none is painted.
+constexpr double kSquarelyCos = 0.5;
+// A marker this close to the neutral's border (the lips' opening) may be
+// half hidden by the other lip: its dot is not told missing. On the
+// synthetic actor the lip markers lie 1.2-4.3 mm from it, all others
+// 8.5 mm or more.
+constexpr double kBesideOpeningMm = 5;
+
 int FlowWindow(double dot_size_px, double window) {
   return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
 }
@@ -168,11 +178,13 @@ void MarkerTracker::StereoCheck(const std::vector<std::vector<DotDetection>>& de
 void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
                                    const std::vector<DotDetection>& detections,
                                    double gate_fraction, bool allow_uncorrected,
-                                   std::vector<int>* detection_of) const {
+                                   std::vector<int>* detection_of,
+                                   std::vector<int>* vacant) const {
   const int num_markers = static_cast<int>(layout_.names.size());
   const HelmetCamera& hc = rig_.cameras[c];
   const Rigid3 cam_from_head = hc.cam_from_helmet * helmet_from_head_;
   std::vector<char> facing(num_markers, 0);
+  std::vector<char> squarely(num_markers, 0);
   std::vector<Vec2> projection(num_markers, Vec2::Zero());
   for (int k = 0; k < num_markers; ++k) {
     const Vec3 p = cam_from_head * positions[k];
@@ -180,11 +192,15 @@ void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
     Vec2 u;
     if (!hc.camera.Project(p, &u) || !hc.camera.IsInImage(u)) continue;
     facing[k] = n.dot(p.normalized()) < -0.1;
+    squarely[k] = n.dot(p.normalized()) < -kSquarelyCos;
     projection[k] = u;
   }
   const std::vector<double> fraction(num_markers, gate_fraction);
+  std::vector<Vec2> prediction(num_markers, Vec2::Zero());
+  std::vector<char> corrected(num_markers, 0);
   for (int round = 0; round < 4; ++round) {
-    std::vector<Vec2> prediction(num_markers, Vec2::Zero());
+    std::fill(prediction.begin(), prediction.end(), Vec2::Zero());
+    std::fill(corrected.begin(), corrected.end(), 0);
     std::vector<char> predicted(num_markers, 0);
     int before = 0;
     for (int k = 0; k < num_markers; ++k) {
@@ -208,11 +224,39 @@ void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
       if (count == 0 && !(allow_uncorrected && round == 0)) continue;
       prediction[k] = projection[k] + (count > 0 ? Vec2(sum / count) : Vec2::Zero());
       predicted[k] = 1;
+      corrected[k] = count > 0;
     }
     Match(c, detections, prediction, predicted, fraction, true, detection_of);
     const int after = static_cast<int>(
         std::count_if(detection_of->begin(), detection_of->end(), [](int d) { return d >= 0; }));
     if (after == before) break;
+  }
+  if (vacant == nullptr) return;
+  // A marker that faces the camera squarely, placed by its named
+  // neighbours, with no unnamed detection nearer its place than the nearest
+  // other marker is: no dot is painted there. (A dot that is there but
+  // stays unnamed -- ambiguous, off its prediction -- is not; a marker
+  // hidden from the camera does not face it or has no named neighbours;
+  // one beside the lips' opening may be half hidden by the other lip and
+  // never detected. track_shot.cc reports markers never found.)
+  std::vector<char> named(detections.size(), 0);
+  for (int d : *detection_of) {
+    if (d >= 0) named[d] = 1;
+  }
+  for (int k = 0; k < num_markers; ++k) {
+    if ((*detection_of)[k] >= 0 || !squarely[k] || !corrected[k] ||
+        layout_.border_mm[k] < kBesideOpeningMm) {
+      continue;
+    }
+    double spacing = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < num_markers; ++j) {
+      if (j != k && facing[j]) spacing = std::min(spacing, (projection[j] - projection[k]).norm());
+    }
+    bool occupied = false;
+    for (size_t d = 0; d < detections.size(); ++d) {
+      occupied = occupied || (!named[d] && (detections[d].pixel - prediction[k]).norm() < spacing);
+    }
+    if (!occupied) vacant->push_back(k);
   }
 }
 
@@ -340,7 +384,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   helmet_from_head_ = labelling_.helmet_from_head;
   for (int c = 0; c < num_cameras; ++c) {
     NameFromLayout(c, positions_, detections[c], options_.name_gate, true,
-                   &detection_of[c]);
+                   &detection_of[c], &out[c].vacant);
   }
   StereoCheck(detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
@@ -433,7 +477,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   for (int c = 0; c < num_cameras; ++c) {
     if (present[c]) {
       NameFromLayout(c, positions_, detections[c], options_.reacquire_gate, false,
-                     &detection_of[c]);
+                     &detection_of[c], &out[c].vacant);
     }
   }
   StereoCheck(detections, &detection_of, &out);

@@ -101,6 +101,7 @@ struct MarkerLayout {
   std::vector<Vec3> positions;            // head space (mm)
   std::vector<Vec3> normals;              // unit surface normals
   std::vector<std::vector<int>> neighbours;  // nearest markers on the neutral, nearest first
+  std::vector<double> border_mm;  // distance to the neutral mesh's border (lips' opening, rim; mm)
   // The jaw: the actor's rig (without its per-vertex weights), each
   // marker's skinning weight (empty: no jaw rig), and the range of the
   // dataset's jaw poses widened by a quarter of it (at least 1 deg / mm).
@@ -131,6 +132,10 @@ struct CameraFrameTracks {
   int reacquired = 0;          // names given to dots that were lost or never seen
   int swaps_caught = 0;        // names dropped by the stereo check
   bool skipped = false;        // the camera's image was missing
+  // Markers left unnamed that face the camera squarely, placed by named
+  // neighbours, with no detection where their dot should be: not painted,
+  // or painted elsewhere (marker_tracker.cc, NameFromLayout).
+  std::vector<int> vacant;
 };
 
 struct ReferenceLabelling {
@@ -181,9 +186,12 @@ class MarkerTracker {
              std::vector<int>* detection_of) const;
   // Names unnamed markers of camera c from the layout `positions` (head
   // space) under helmet_from_head_ (file comment, step 3), in rounds.
+  // With `vacant`, adds the markers whose place holds no dot
+  // (CameraFrameTracks::vacant).
   void NameFromLayout(int c, const std::vector<Vec3>& positions,
                       const std::vector<DotDetection>& detections, double gate_fraction,
-                      bool allow_uncorrected, std::vector<int>* detection_of) const;
+                      bool allow_uncorrected, std::vector<int>* detection_of,
+                      std::vector<int>* vacant = nullptr) const;
   // helmet_from_head_ from the markers named in both cameras (trimmed fit),
   // then jaw_ and positions_ (with a jaw rig).
   void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,

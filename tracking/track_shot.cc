@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <limits>
 #include <map>
 
 #include <fmt/format.h>
@@ -155,6 +156,10 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   std::vector<double> reference_level(num_cameras, 0);  // mean linear level, per camera
   bool started = false;
   int64_t detections_total = 0, named_total = 0, views = 0;
+  // Per marker: the frames where its dot was missing in some camera
+  // (CameraFrameTracks::vacant), and the last such frame.
+  std::vector<int> vacant_frames(layout.names.size(), 0);
+  std::vector<int> vacant_in(layout.names.size(), std::numeric_limits<int>::min());
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
@@ -232,6 +237,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       }
       summary.reacquired += t.reacquired;
       summary.swaps_caught += t.swaps_caught;
+      for (int k : t.vacant) vacant_in[k] = frame->frame;
       for (size_t i = 0; i < t.marker.size(); ++i) {
         Track2d row;
         row.frame = frame->frame;
@@ -250,6 +256,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       }
     }
     frames_json.push_back(frame_json);
+    for (size_t m = 0; m < vacant_in.size(); ++m) vacant_frames[m] += vacant_in[m] == frame->frame;
   }
   progress.Finish();
   if (!started) {
@@ -261,18 +268,24 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   std::map<std::string, size_t> index;
   for (size_t m = 0; m < layout.names.size(); ++m) index[layout.names[m]] = m;
   for (const Track2d& row : output.tracks) found[index.at(row.marker)] = true;
+  // A marker hidden all along, or seen only at a grazing angle, is never
+  // found in a clean shot too: only the never-found markers whose dot was
+  // missing where it should have been seen are warned.
   for (size_t m = 0; m < found.size(); ++m) {
-    if (!found[m]) summary.never_found.push_back(layout.names[m]);
+    if (found[m]) continue;
+    summary.never_found.push_back(layout.names[m]);
+    if (2 * vacant_frames[m] >= summary.frames) summary.missing_dots.push_back(layout.names[m]);
   }
-  if (!summary.never_found.empty()) {
-    const size_t shown = std::min<size_t>(summary.never_found.size(), 12);
+  if (!summary.missing_dots.empty()) {
+    const std::vector<std::string>& missing = summary.missing_dots;
+    const size_t shown = std::min<size_t>(missing.size(), 12);
     summary.warnings.push_back(fmt::format(
-        "{} of the actor's {} markers never found over the shot ({}{}): hidden from the "
-        "cameras all along, not painted, or painted elsewhere -- if painted elsewhere, the "
-        "names of the dots near them may be wrong",
-        summary.never_found.size(), layout.names.size(),
-        fmt::join(summary.never_found.begin(), summary.never_found.begin() + shown, ", "),
-        summary.never_found.size() > shown ? ", ..." : ""));
+        "{} of the actor's {} markers never found over the shot, their dots missing where "
+        "they face a camera ({}{}): not painted, or painted elsewhere -- if painted elsewhere, "
+        "the names of the dots near them may be wrong",
+        missing.size(), layout.names.size(),
+        fmt::join(missing.begin(), missing.begin() + shown, ", "),
+        missing.size() > shown ? ", ..." : ""));
   }
   for (const std::string& w : summary.warnings) spdlog::warn("track: {}", w);
   summary.dot_size_px = dot_size;
@@ -284,7 +297,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   OptionFields used;
   TrackOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml");
+  WriteOptionsUsed(used, input.out.parent_path() / "options_used.yaml", "track");
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   nlohmann::json j;
@@ -309,6 +322,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                       {"protrude_mm", summary.labelling.jaw.protrude_mm}}}};
   j["warnings"] = summary.warnings;  // with every frame that failed to decode
   j["never_found"] = summary.never_found;
+  j["missing_dots"] = summary.missing_dots;
   j["summary"] = {{"frames", summary.frames},
                   {"skipped_views", summary.skipped_views},
                   {"mean_detections", summary.mean_detections},

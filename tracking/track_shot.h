@@ -58,10 +58,14 @@ struct TrackSummary {
   int exposure_matched_views = 0;
   int64_t rows = 0;
   double seconds = 0;
-  // The actor's markers named in no view of the shot (hidden all along,
-  // not painted, or painted elsewhere: then the dots near them may carry
-  // wrong names); warned.
+  // The actor's markers named in no view of the shot: hidden all along,
+  // at a grazing angle, left unnamed, not painted, or painted elsewhere.
   std::vector<std::string> never_found;
+  // Those of them whose dot was missing where it should have been seen
+  // (CameraFrameTracks::vacant) in at least half the frames: not painted,
+  // or painted elsewhere, and then the dots near them may carry wrong
+  // names; warned.
+  std::vector<std::string> missing_dots;
   std::vector<std::string> warnings;
   std::string BriefReport() const;
 };

@@ -183,7 +183,7 @@ UndistortSummary RunUndistort(const UndistortInput& input, const UndistortOption
   OptionFields used;
   UndistortOptions copy = options;
   copy.Register(&used);
-  WriteOptionsUsed(used, input.out / "options_used.yaml");
+  WriteOptionsUsed(used, input.out / "options_used.yaml", "undistort");
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

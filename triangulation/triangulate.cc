@@ -410,7 +410,7 @@ TriangulateOutput RunTriangulate(const TriangulateInput& input,
 }
 
 void WriteRaysCsv(const std::filesystem::path& path, const std::vector<MonoRay>& rays) {
-  std::string text = "frame,marker,camera,ox,oy,oz,dx,dy,dz\n";
+  std::string text = std::string(kRaysCsvHeader) + "\n";
   for (const MonoRay& ray : rays) {
     const Vec3& o = ray.origin_in_helmet;
     const Vec3& d = ray.direction_in_helmet;

@@ -140,6 +140,7 @@ TriangulateOutput RunTriangulate(const TriangulateInput& input,
 
 // rays.csv: frame,marker,camera,ox,oy,oz,dx,dy,dz (helmet space; origin mm,
 // unit direction; docs/formats.md). Atomic.
+inline constexpr const char* kRaysCsvHeader = "frame,marker,camera,ox,oy,oz,dx,dy,dz";
 void WriteRaysCsv(const std::filesystem::path& path,
                   const std::vector<MonoRay>& rays);
 // Throws InputError with file and line on a bad row or a non-unit direction.
