@@ -157,6 +157,8 @@ void CheckCommandConfig(const std::vector<std::string>& words, const YAML::Node&
   const auto it = Bindings().find(command);
   HMC_CHECK_MSG(it != Bindings().end(), "hmc " + command->get_name() + " binds no options");
   it->second->LoadSection(section, file);
+  const std::string range = it->second->fields().RangeError();
+  if (!range.empty()) throw InputError(range);
   if (!it->second->Check()) {
     ThrowInputError(file, section.Mark().line + 1, "invalid {} options (see the message above)",
                     fmt::format("{}", fmt::join(words, " ")));
@@ -173,7 +175,10 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string con
   for (const auto& field : fields_.fields()) {
     values_.push_back(std::make_unique<std::string>());
     CLI::Option* flag =
-        app->add_option("--" + field.name, *values_.back(), field.help)
+        app->add_option("--" + field.name, *values_.back(),
+                        OptionFields::RangeText(field).empty()
+                            ? field.help
+                            : field.help + " [" + OptionFields::RangeText(field) + "]")
             ->default_str(fields_.ValueString(field))
             ->type_name(std::visit(
                 [](auto* pointer) -> std::string {

@@ -37,14 +37,16 @@ void RunOptions::Register(OptionFields* fields) {
   footage.Register(fields);
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral, where track names the dots (0 = track's "
-              "default, configs/track.yaml)");
+              "default, configs/track.yaml)")
+      .AtLeast(0);
   fields->Add("calibrate", &calibrate,
               "refine the rig from the helmet tags (false: use --calibration as it is)");
   fields->Add("export", &export_formats,
               "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
   fields->Add("fps", &fps,
               "frame rate of the mesh caches (frames/s; 0 = the video's own, 30 for an image "
-              "sequence, which declares none)");
+              "sequence, which declares none)")
+      .In(0, 1000);
 }
 
 namespace {
@@ -82,9 +84,7 @@ bool RunOptions::Check() const {
     fail(fmt::format("to '{}' is not a stage ({})", to, fmt::join(PipelineStages(), ", ")));
   }
   if (ok && !from.empty() && StageIndex(from) > StageIndex(to)) fail("from comes after to");
-  if (!footage.Check()) ok = false;
-  if (reference_frame < 0) fail("reference_frame must be >= 0 (0 = track's default)");
-  if (!(fps >= 0 && fps <= 1000)) fail("fps must be in [0, 1000] (0 = the footage's own)");
+  if (!CheckDeclaredRanges(*this) || !footage.Check()) ok = false;
   for (const std::string& f : ExportFormats(export_formats)) {
     if (f != "usda" && f != "mdd" && f != "obj") fail(fmt::format("export format '{}' is not usda, mdd or obj", f));
   }

@@ -92,6 +92,7 @@ TEST_F(RunTest, ABadConfigIsRefusedBeforeAnyStageRunsNamingTheUsersFileAndLine) 
       {"run:\n  to: solve\nsolve:\n  method: robust\n  lamda: 1\n", "bad.yaml:5", "lamda"},
       {"track:\n  detect:\n    dot_size_px: many\n", "bad.yaml:3", "dot_size_px"},
       {"stabilize:\n  noise_mm: -3\n", "bad.yaml:2", "noise_mm"},
+      {"jaw:\n  smoothness: 1\n  threads: -3\n", "bad.yaml:3", "'jaw.threads' = -3 must be >= 0"},
       {"track:\n  offset1: 2\n", "bad.yaml:2", "run.offset1"},
   };
   for (const auto& [config, where, what] : cases) {
