@@ -130,29 +130,24 @@ void ParseCommandLine(CLI::App* app, const std::vector<std::string>& args) {
 }
 
 int RunCommandLine(const std::vector<std::string>& args) {
-  CLI::App app("hmc", "hmc");
-  app.require_subcommand(1);
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
+  CommandTree tree;
   try {
-    ParseCommandLine(&app, args);
+    ParseCommandLine(&tree.app, args);
   } catch (const CLI::ParseError& e) {
     std::string line;
     for (const std::string& a : args) line += " " + a;
     throw InputError(fmt::format("hmc{}: {}", line, e.what()));
   }
-  if (!run) throw InputError("no command to run");
-  return run();
+  if (!tree.run) throw InputError("no command to run");
+  return tree.run();
 }
 
 OptionBinding::~OptionBinding() { Bindings().erase(app_); }
 
 void CheckCommandConfig(const std::vector<std::string>& words, const YAML::Node& section,
                         const std::filesystem::path& file) {
-  CLI::App app("hmc", "hmc");
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
-  const CLI::App* command = &app;
+  CommandTree tree;
+  const CLI::App* command = &tree.app;
   for (const std::string& word : words) command = command->get_subcommand(word);
   const auto it = Bindings().find(command);
   HMC_CHECK_MSG(it != Bindings().end(), "hmc " + command->get_name() + " binds no options");

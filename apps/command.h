@@ -35,6 +35,17 @@ bool RegisterCommand(const char* group, const char* name, const char* help,
 // the parse selects stores what to run in *run (which must outlive `app`).
 void AddRegisteredCommands(CLI::App* app, CommandRun* run);
 
+// A fresh `hmc` app with every registered command, as RunCommandLine
+// parses into; `run` is what the parsed command would run.
+struct CommandTree {
+  CommandTree() {
+    app.require_subcommand(1);
+    AddRegisteredCommands(&app, &run);
+  }
+  CLI::App app{"hmc", "hmc"};
+  CommandRun run;
+};
+
 // Flags are spelt with underscores (`--noise_mm`, `--reference_frame`):
 // the house spelling, the one --help shows. Every flag of every command is
 // also accepted with hyphens (`--noise-mm`): ParseCommandLine rewrites a

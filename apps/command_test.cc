@@ -41,15 +41,12 @@ std::string Hyphenated(std::string flag) {
 // unless the flag was refused as unknown (other errors, such as a missing
 // required flag or a value that is no file, are not this test's).
 bool FlagIsKnown(const Command& command, const std::string& flag, bool takes_value) {
-  CLI::App app("hmc", "hmc");
-  app.require_subcommand(1);
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
+  CommandTree tree;
   std::vector<std::string> args = command.words;
   args.push_back(flag);
   if (takes_value) args.push_back("1");
   try {
-    ParseCommandLine(&app, args);
+    ParseCommandLine(&tree.app, args);
   } catch (const InputError& e) {
     ADD_FAILURE() << e.what();
     return false;
@@ -62,11 +59,8 @@ bool FlagIsKnown(const Command& command, const std::string& flag, bool takes_val
 }
 
 TEST(CommandTest, EveryFlagOfEveryCommandParsesWithUnderscoresAndWithHyphens) {
-  CLI::App app("hmc", "hmc");
-  app.require_subcommand(1);
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
-  const std::vector<Command> commands = Commands(&app);
+  CommandTree tree;
+  const std::vector<Command> commands = Commands(&tree.app);
   ASSERT_GE(commands.size(), 15u);
   int flags = 0, hyphenated = 0;
   for (const Command& command : commands) {
@@ -106,12 +100,9 @@ TEST(CommandTest, AnUnknownFlagIsNamedWithTheNearestFlagOfItsCommand) {
       {{"track", "--reference_frmae", "3"}, "did you mean --reference_frame?"},
   };
   for (const auto& [args, expected] : cases) {
-    CLI::App app("hmc", "hmc");
-    app.require_subcommand(1);
-    CommandRun run;
-    AddRegisteredCommands(&app, &run);
+    CommandTree tree;
     try {
-      ParseCommandLine(&app, args);
+      ParseCommandLine(&tree.app, args);
       ADD_FAILURE() << args[1] << " parsed";
     } catch (const InputError& e) {
       const std::string message = e.what();
@@ -120,11 +111,9 @@ TEST(CommandTest, AnUnknownFlagIsNamedWithTheNearestFlagOfItsCommand) {
     }
   }
   // Nothing near: no suggestion, still named.
-  CLI::App app("hmc", "hmc");
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
+  CommandTree tree;
   try {
-    ParseCommandLine(&app, {"solve", "--completely_unrelated_words", "1"});
+    ParseCommandLine(&tree.app, {"solve", "--completely_unrelated_words", "1"});
     ADD_FAILURE() << "parsed";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--completely_unrelated_words"), std::string::npos);
