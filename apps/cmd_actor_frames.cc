@@ -1,8 +1,8 @@
 // `hmc actor frames --actor DIR --out DIR
 //   --kind dataset|combos|performance|heldout|mixed [--frames N] [--seed N]
-//   [--noise-mm S]`: ground-truth test material from the synthetic actor's
+//   [--noise_mm S]`: ground-truth test material from the synthetic actor's
 // generator (docs/synthetic.md). heldout and mixed need an actor made with
-// held-out units (`hmc actor synth --holdout N`). --noise-mm applies to every
+// held-out units (`hmc actor synth --holdout N`). --noise_mm applies to every
 // kind. Writes to --out:
 //   truth.pc2        the true mesh sequence (frames numbered from 1, --fps)
 //   neutral.obj      its topology (the package's neutral)
@@ -54,20 +54,11 @@ HMC_COMMAND(ActorFrames, "actor", "frames",
   auto binding = BindOptions(app, options.get());
   auto actor_dir = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
-  auto noise_alias = std::make_shared<std::string>();
   app->add_option("--actor", *actor_dir, "Synthetic actor package (from `hmc actor synth`)")
       ->required();
   app->add_option("--out", *out, "Output folder")->required();
-  CLI::Option* noise_flag =
-      app->add_option("--noise-mm", *noise_alias, "Same as --noise_mm");
   return [=] {
     binding->Apply();
-    if (noise_flag->count() > 0) {
-      // The binding's fields point into *options.
-      OptionFields fields;
-      options->Register(&fields);
-      fields.Set("noise_mm", *noise_alias, "--noise-mm");
-    }
     RequireValid(*options, "actor frames");
     StageTimer timer("actor frames");
     const SynthPackage package = LoadSynthPackage(*actor_dir);

@@ -1,11 +1,11 @@
 // `hmc calibrate --shot SHOT --calibration NOMINAL.yaml --out CAL.yaml
 //   [--report FILE.json] [--frames A:B] [--sample N]
-//   [--refine extrinsics|intrinsics] [--import-kalibr camchain.yaml]
-//   [--export-kalibr FILE] [--config configs/calibrate.yaml]`: the rig's
+//   [--refine extrinsics|intrinsics] [--import_kalibr camchain.yaml]
+//   [--export_kalibr FILE] [--config configs/calibrate.yaml]`: the rig's
 // calibration for this shot from the AprilTags on the helmet
 // (triangulation/rig_calibration.h; method: docs/calibration.md). Writes
 // CAL.yaml (same format as the nominal, atomically), options_used.yaml
-// and, last, summary.json (the report) beside it, the report (FILE.json) and, with --export-kalibr, a Kalibr
+// and, last, summary.json (the report) beside it, the report (FILE.json) and, with --export_kalibr, a Kalibr
 // camchain. Refuses (exit 2, nothing but the report written) when a camera
 // moved during the shot (choose one side with --frames), and when a camera
 // is solved beyond max_move_mm / max_turn_deg of its nominal pose (names
@@ -41,14 +41,14 @@ HMC_COMMAND(Calibrate, "", "calibrate",
       ->required();
   app->add_option("--out", *out, "Calibrated calibration.yaml to write")->required();
   app->add_option("--report", *report, "Report to write (JSON; docs/formats.md)");
-  app->add_option("--import-kalibr", *import_kalibr,
+  app->add_option("--import_kalibr", *import_kalibr,
                   "Kalibr camchain.yaml: its intrinsics (and T_cn_cnm1) replace the nominal's "
                   "before the solve");
   auto truth = std::make_shared<std::string>();
   app->add_option("--truth", *truth,
                   "A true calibration.yaml (synthetic shots: calibration_true.yaml) to compare "
                   "the result with, in the log and the report");
-  app->add_option("--export-kalibr", *export_kalibr, "Also write the result as a Kalibr camchain");
+  app->add_option("--export_kalibr", *export_kalibr, "Also write the result as a Kalibr camchain");
   return [=] {
     binding->Apply();
     RequireValid(*options, "calibrate");
@@ -58,12 +58,12 @@ HMC_COMMAND(Calibrate, "", "calibrate",
         out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
     PrepareOutputPaths({{out_path, "--out"},
                         {*report, "--report"},
-                        {*export_kalibr, "--export-kalibr"},
+                        {*export_kalibr, "--export_kalibr"},
                         SideFile(out_dir / "options_used.yaml", "calibrate"),
                         SideFile(out_dir / "summary.json", "calibrate")},
                        {{*shot, "--shot"},
                         {*nominal, "--calibration"},
-                        {*import_kalibr, "--import-kalibr"},
+                        {*import_kalibr, "--import_kalibr"},
                         {*truth, "--truth"}});
     HelmetRig rig = ReadCalibration(*nominal);
     if (!import_kalibr->empty()) {

@@ -120,7 +120,7 @@ HMC_COMMAND(Convert, "", "convert",
                   "folders carry none: default 30)")
       ->check(CLI::PositiveNumber);
   CLI::Option* start = app->add_option(
-      "--start-frame", args->start_frame,
+      "--start_frame", args->start_frame,
       "Number of the first frame; overrides the input's");
   app->add_option("--precision", args->precision,
                   "Significant digits of OBJ frame coordinates (17: exact "

@@ -1,5 +1,6 @@
-// `hmc run --shot SHOT --actor DIR --calibration CAL --out WORK [--from
-// STAGE] [--to STAGE] [--frames A:B] [--config FILE]`: footage to mesh in
+// `hmc run --shot SHOT --actor DIR --calibration CAL --out WORK [--cam0 V]
+// [--cam1 V] [--offset1 N] [--frames A:B] [--reference_frame N] [--fps F]
+// [--from STAGE] [--to STAGE] [--config FILE]`: footage to mesh in
 // one command (pipeline/run_pipeline.h, docs/pipeline.md). Each stage runs
 // as its own hmc command on the previous stage's folder of WORK, so any
 // stage can be re-run alone; complete stages are kept.
@@ -20,19 +21,44 @@ HMC_COMMAND(Run, "", "run",
             "report in a shot workspace, keeping the stages that are complete") {
   auto input = std::make_shared<RunInput>();
   auto options = std::make_shared<RunOptions>();
+  const std::string data = "Your data (required)";
   app->add_option("--shot", input->shot, "Shot folder: cam0/cam1 videos or image folders")
-      ->required();
-  app->add_option("--actor", input->actor, "Actor package folder")->required();
+      ->required()
+      ->group(data);
+  app->add_option("--actor", input->actor, "Actor package folder (hmc actor check validates one)")
+      ->required()
+      ->group(data);
   app->add_option("--calibration", input->calibration,
                   "calibration.yaml: the nominal rig (refined from the helmet tags unless "
-                  "--calibrate false)")
-      ->required();
-  app->add_option("--out", input->out, "Workspace folder (one sub-folder per stage)")->required();
+                  "--calibrate false; hmc calibrate --import_kalibr takes a Kalibr camchain)")
+      ->required()
+      ->group(data);
+  app->add_option("--out", input->out, "Workspace folder (one sub-folder per stage)")
+      ->required()
+      ->group(data);
   OptionFields fields;
   options->Register(&fields);
   // --config: the run config (configs/run.yaml): `run:` holds these
   // options, one section per stage holds that stage's.
   auto binding = std::make_shared<OptionBinding>(app, std::move(fields), "run");
+  // Grouped as a user meets them with their own footage (the flags are the
+  // binding's; only their heading is chosen here).
+  for (const char* flag : {"--cam0", "--cam1", "--offset1", "--frames", "--reference_frame", "--fps"}) {
+    app->get_option(flag)->group("Footage, set once for every stage (also run: in --config)");
+  }
+  for (const char* flag : {"--calibrate", "--export", "--from", "--to"}) {
+    app->get_option(flag)->group("The run (also run: in --config)");
+  }
+  app->footer(
+      "--config FILE (configs/run.yaml) holds run: (the flags above) and one section per stage "
+      "(calibrate, track, triangulate, stabilize, jaw, solve) with that stage's options; "
+      "every section is checked before the first stage runs.");
+  // Every stage's section is checked as that stage's own command reads
+  // its --config, before the first stage runs.
+  input->check_section = [](const std::string& stage, const YAML::Node& section,
+                            const std::filesystem::path& file) {
+    CheckCommandConfig({stage}, section, file);
+  };
   return [=] {
     binding->Apply();
     input->config = binding->config_file();

@@ -264,10 +264,10 @@ HMC_COMMAND(Solve, "", "solve",
                   "an OBJ: the mesh a .pc2/.mdd is applied to in Blender (docs/blender.md)");
   app->add_option("--fps", cmd->fps, "Frame rate written to the output")
       ->check(CLI::PositiveNumber);
-  app->add_flag("--no_cache_write,--no-cache-write", cmd->no_cache_write,
+  app->add_flag("--no_cache_write", cmd->no_cache_write,
                 "Keep a built index in memory only (default: write it to "
                 "the user cache, $XDG_CACHE_HOME/hmc; the actor package is "
-                "never written). --no-cache-write: the old spelling");
+                "never written)");
   auto binding = BindOptions(app, &cmd->options);
   return [cmd, binding] { return Run(*cmd, *binding); };
 }

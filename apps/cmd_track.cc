@@ -1,6 +1,6 @@
 // `hmc track --shot SHOT --calibration CAL --actor DIR --out tracks_2d.csv
-//   [--reference-frame N] [--overlay DIR] [--diagnostics FILE.json]
-//   [--dot-size PX] [--config configs/track.yaml]`: the painted dots of a
+//   [--reference_frame N] [--overlay DIR] [--diagnostics FILE.json]
+//   [--dot_size PX] [--config configs/track.yaml]`: the painted dots of a
 // stereo helmet-camera shot, detected in the fisheye frames, named from the
 // actor's marker layout at the reference frame and tracked over the shot
 // (tracking/track_shot.h; method: docs/tracking.md; files: docs/formats.md).
@@ -28,21 +28,17 @@ HMC_COMMAND(Track, "", "track",
   auto out = std::make_shared<std::string>();
   auto overlay = std::make_shared<std::string>();
   auto diagnostics = std::make_shared<std::string>();
-  auto reference = std::make_shared<int>(0);
   auto dot_size = std::make_shared<double>(0);
   app->add_option("--shot", *shot, "Shot folder (cam0/cam1 videos or image folders)")->required();
   app->add_option("--calibration", *calibration, "calibration.yaml of the rig")->required();
   app->add_option("--actor", *actor, "Actor package (its markers are named)")->required();
   app->add_option("--out", *out, "tracks_2d.csv to write")->required();
-  app->add_option("--reference-frame", *reference,
-                  "Frame where the actor is near neutral (same as --reference_frame)");
   app->add_option("--overlay", *overlay, "Folder for PNG frames with the named dots drawn");
   app->add_option("--diagnostics", *diagnostics, "JSON with per-frame, per-camera counts");
-  app->add_option("--dot-size", *dot_size,
+  app->add_option("--dot_size", *dot_size,
                   "Expected dot diameter in px (same as --detect.dot_size_px; default: measured)");
   return [=] {
     binding->Apply();
-    if (*reference > 0) options->reference_frame = *reference;
     if (*dot_size > 0) options->detect.dot_size_px = *dot_size;
     RequireValid(*options, "track");
     const std::filesystem::path out_dir = std::filesystem::path(*out).parent_path();

@@ -1,5 +1,5 @@
 // `hmc undistort --shot SHOT --calibration CAL --out DIR [--camera cam0|cam1|both]
-//   [--fov-deg F] [--tracks tracks_2d.csv] [--video]`: the fisheye frames
+//   [--fov_deg F] [--tracks tracks_2d.csv] [--video]`: the fisheye frames
 // remapped exactly (the camera's lens model, core/camera.h) to pinhole views,
 // as PNG frames or an FFV1 video per camera; with --tracks the named dots
 // are drawn (tracking/undistort.h; files: docs/formats.md).
@@ -23,15 +23,12 @@ HMC_COMMAND(Undistort, "", "undistort",
   auto calibration = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto tracks = std::make_shared<std::string>();
-  auto fov = std::make_shared<double>(0);
   app->add_option("--shot", *shot, "Shot folder (cam0/cam1 videos or image folders)")->required();
   app->add_option("--calibration", *calibration, "calibration.yaml of the rig")->required();
   app->add_option("--out", *out, "Folder to write")->required();
   app->add_option("--tracks", *tracks, "tracks_2d.csv whose named dots are drawn");
-  app->add_option("--fov-deg", *fov, "Horizontal field of view (same as --fov_deg)");
   return [=] {
     binding->Apply();
-    if (*fov > 0) options->fov_deg = *fov;
     RequireValid(*options, "undistort");
     PrepareOutputPaths({{*out, "--out", true}},
                        {{*shot, "--shot"}, {*calibration, "--calibration"}, {*tracks, "--tracks"}});

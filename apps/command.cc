@@ -5,11 +5,13 @@
 #include <map>
 #include <vector>
 
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/text.h"
 
 namespace hmc {
 namespace {
@@ -26,6 +28,12 @@ struct Registered {
 std::vector<Registered>& Registry() {
   static std::vector<Registered> registry;
   return registry;
+}
+
+// The binding of each command's app, for CheckCommandConfig.
+std::map<const CLI::App*, OptionBinding*>& Bindings() {
+  static std::map<const CLI::App*, OptionBinding*> bindings;
+  return bindings;
 }
 
 const std::map<std::string, std::string>& GroupHelp() {
@@ -140,25 +148,91 @@ void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
   }
 }
 
+std::string CanonicalFlag(const std::string& token) {
+  if (token.size() <= 2 || token.compare(0, 2, "--") != 0) return token;
+  const size_t end = std::min(token.find('='), token.size());
+  std::string out = token;
+  std::replace(out.begin() + 2, out.begin() + static_cast<std::ptrdiff_t>(end), '-', '_');
+  return out;
+}
+
+std::vector<std::string> KnownFlags(const CLI::App* app) {
+  std::vector<std::string> flags;
+  for (; app != nullptr; app = app->get_parent()) {
+    for (const CLI::Option* option : app->get_options()) {
+      for (const std::string& name : option->get_lnames()) flags.push_back("--" + name);
+    }
+  }
+  return flags;
+}
+
+void ParseCommandLine(CLI::App* app, const std::vector<std::string>& args) {
+  std::vector<std::string> canonical;
+  bool rest_positional = false;  // after a bare "--" nothing is a flag
+  for (const std::string& a : args) {
+    rest_positional = rest_positional || a == "--";
+    canonical.push_back(rest_positional ? a : CanonicalFlag(a));
+  }
+  // Walk the command words as CLI11 will, checking each flag against the
+  // flags of the command named so far (and of the apps above it).
+  const CLI::App* level = app;
+  for (const std::string& a : canonical) {
+    if (a == "--") break;
+    if (a.compare(0, 2, "--") == 0) {
+      const std::string name = a.substr(0, a.find('='));
+      const std::vector<std::string> known = KnownFlags(level);
+      if (std::find(known.begin(), known.end(), name) != known.end()) continue;
+      const std::string near = NearestWord(name, known, std::max<int>(2, name.size() / 4));
+      throw InputError(fmt::format("unknown option {}{} ({} --help lists them)", name,
+                                   near.empty() ? "" : "; did you mean " + near + "?",
+                                   level == app ? "hmc" : "hmc " + level->get_name()));
+    }
+    if (a.empty() || a[0] == '-' || level->get_require_subcommand_min() == 0) continue;
+    const CLI::App* next = nullptr;
+    for (const CLI::App* sub : level->get_subcommands({})) {
+      if (sub->get_name() == a) next = sub;
+    }
+    if (next == nullptr) break;  // not a command: the caller's message
+    level = next;
+  }
+  std::vector<std::string> reversed(canonical.rbegin(), canonical.rend());  // CLI11's order
+  app->parse(reversed);
+}
+
 int RunCommandLine(const std::vector<std::string>& args) {
-  CLI::App app("hmc", "hmc");
-  app.require_subcommand(1);
-  CommandRun run;
-  AddRegisteredCommands(&app, &run);
-  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
+  CommandTree tree;
   try {
-    app.parse(reversed);
+    ParseCommandLine(&tree.app, args);
   } catch (const CLI::ParseError& e) {
     std::string line;
     for (const std::string& a : args) line += " " + a;
     throw InputError(fmt::format("hmc{}: {}", line, e.what()));
   }
-  if (!run) throw InputError("no command to run");
-  return run();
+  if (!tree.run) throw InputError("no command to run");
+  return tree.run();
+}
+
+OptionBinding::~OptionBinding() { Bindings().erase(app_); }
+
+void CheckCommandConfig(const std::vector<std::string>& words, const YAML::Node& section,
+                        const std::filesystem::path& file) {
+  CommandTree tree;
+  const CLI::App* command = &tree.app;
+  for (const std::string& word : words) command = command->get_subcommand(word);
+  const auto it = Bindings().find(command);
+  HMC_CHECK_MSG(it != Bindings().end(), "hmc " + command->get_name() + " binds no options");
+  it->second->LoadSection(section, file);
+  const std::string range = it->second->fields().RangeError();
+  if (!range.empty()) throw InputError(range);
+  if (!it->second->Check()) {
+    ThrowInputError(file, section.Mark().line + 1, "invalid {} options (see the message above)",
+                    fmt::format("{}", fmt::join(words, " ")));
+  }
 }
 
 OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string config_section)
-    : fields_(std::move(fields)), config_section_(std::move(config_section)) {
+    : fields_(std::move(fields)), config_section_(std::move(config_section)), app_(app) {
+  Bindings()[app] = this;
   app->add_option("--config", config_file_,
                   "YAML file of option values (defaults: configs/); flags on "
                   "the command line override it")
@@ -166,7 +240,10 @@ OptionBinding::OptionBinding(CLI::App* app, OptionFields fields, std::string con
   for (const auto& field : fields_.fields()) {
     values_.push_back(std::make_unique<std::string>());
     CLI::Option* flag =
-        app->add_option("--" + field.name, *values_.back(), field.help)
+        app->add_option("--" + field.name, *values_.back(),
+                        OptionFields::RangeText(field).empty()
+                            ? field.help
+                            : field.help + " [" + OptionFields::RangeText(field) + "]")
             ->default_str(fields_.ValueString(field))
             ->type_name(std::visit(
                 [](auto* pointer) -> std::string {

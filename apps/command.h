@@ -35,6 +35,34 @@ bool RegisterCommand(const char* group, const char* name, const char* help,
 // the parse selects stores what to run in *run (which must outlive `app`).
 void AddRegisteredCommands(CLI::App* app, CommandRun* run);
 
+// A fresh `hmc` app with every registered command, as RunCommandLine
+// parses into; `run` is what the parsed command would run.
+struct CommandTree {
+  CommandTree() {
+    app.require_subcommand(1);
+    AddRegisteredCommands(&app, &run);
+  }
+  CLI::App app{"hmc", "hmc"};
+  CommandRun run;
+};
+
+// Flags are spelt with underscores (`--noise_mm`, `--reference_frame`):
+// the house spelling, the one --help shows. Every flag of every command is
+// also accepted with hyphens (`--noise-mm`): ParseCommandLine rewrites a
+// long flag's name to the underscore form before CLI11 sees it, so no alias
+// is written per flag.
+std::string CanonicalFlag(const std::string& token);
+
+// The long flags (`--name`) `app` and the apps above it accept.
+std::vector<std::string> KnownFlags(const CLI::App* app);
+
+// Parses `args` (without the program name) into `app`: hyphenated flags
+// become their underscore form, and a flag that neither `app` nor the
+// command the words name knows throws InputError "unknown option --fsp; did
+// you mean --fps?" (nearest by edit distance among that command's flags)
+// before anything else is checked. Other errors are CLI11's ParseError.
+void ParseCommandLine(CLI::App* app, const std::vector<std::string>& args);
+
 // Runs the command line `hmc <args...>` (without global flags) in this
 // process and returns its exit code; what the command throws passes
 // through, a parse error becomes an InputError. `hmc run` chains the stages
@@ -83,7 +111,18 @@ void PrepareOutputPaths(std::initializer_list<OutputFlag> outputs,
 class OptionBinding {
  public:
   OptionBinding(CLI::App* app, OptionFields fields, std::string config_section = "");
+  ~OptionBinding();
+  OptionBinding(const OptionBinding&) = delete;
+  OptionBinding& operator=(const OptionBinding&) = delete;
   void Apply();
+  // The options' own Check() (BindOptions sets it); CheckCommandConfig
+  // runs it after loading a config section.
+  void SetCheck(std::function<bool()> check) { check_ = std::move(check); }
+  bool Check() const { return !check_ || check_(); }
+  // Loads a mapping of option values (`section` of `file`) into the fields.
+  void LoadSection(const YAML::Node& section, const std::filesystem::path& file) {
+    fields_.LoadYaml(section, file);
+  }
   const OptionFields& fields() const { return fields_; }
   const std::string& config_file() const { return config_file_; }
 
@@ -93,7 +132,17 @@ class OptionBinding {
   std::string config_file_;
   std::vector<std::pair<const OptionFields::Field*, CLI::Option*>> flags_;
   std::vector<std::unique_ptr<std::string>> values_;
+  std::function<bool()> check_;
+  const CLI::App* app_;
 };
+
+// Checks `section` of the config `file` as command `words` ({"solve"})
+// would read it from its --config, without running anything: unknown keys,
+// types, ranges and the options' own Check(). Throws InputError naming
+// `file` (and the line, for what a key's line can tell). How `hmc run`
+// checks every stage's section before the first stage runs.
+void CheckCommandConfig(const std::vector<std::string>& words, const YAML::Node& section,
+                        const std::filesystem::path& file);
 
 // Registers `options`' fields and binds them to `app`. `options` must outlive
 // the returned binding (hold both in the command's run closure).
@@ -101,7 +150,9 @@ template <typename Options>
 std::shared_ptr<OptionBinding> BindOptions(CLI::App* app, Options* options) {
   OptionFields fields;
   options->Register(&fields);
-  return std::make_shared<OptionBinding>(app, std::move(fields));
+  auto binding = std::make_shared<OptionBinding>(app, std::move(fields));
+  binding->SetCheck([options] { return options->Check(); });
+  return binding;
 }
 
 }  // namespace hmc

@@ -1,6 +1,7 @@
 // `hmc`: one binary, one subcommand per stage or tool (like `colmap <cmd>`).
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -26,12 +27,20 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors");
   app.add_option("--threads", threads, "Worker threads (0: all cores)")
       ->check(CLI::Range(0, 4096));
+  app.set_version_flag("--version", "hmc " HMC_VERSION_TEXT, "The version of hmc");
+  app.footer("Flags are spelt with underscores (--noise_mm); hyphens work as well (--noise-mm).");
 
   CommandRun run;
   AddRegisteredCommands(&app, &run);
 
   try {
-    app.parse(argc, argv);
+    ParseCommandLine(&app, std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const InputError& e) {  // an unknown flag
+    std::fprintf(stderr, "hmc: error: %s\n", e.what());
+    return 2;
+  } catch (const CLI::CallForVersion& e) {
+    std::printf("%s\n", e.what());
+    return 0;
   } catch (const CLI::ParseError& e) {
     // A word where a command belongs that names none: say so, rather than
     // CLI11's "A subcommand is required".

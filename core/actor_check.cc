@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "core/text.h"
+
 namespace hmc {
 namespace {
 
@@ -19,21 +21,6 @@ std::string NearestAxis(const Vec3& v) {
   int axis = 0;
   v.cwiseAbs().maxCoeff(&axis);
   return fmt::format("{}{}", v[axis] >= 0 ? '+' : '-', "xyz"[axis]);
-}
-
-int EditDistance(const std::string& a, const std::string& b) {
-  std::vector<int> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = static_cast<int>(j);
-  for (size_t i = 1; i <= a.size(); ++i) {
-    int diagonal = row[0];
-    row[0] = static_cast<int>(i);
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const int substitute = diagonal + (a[i - 1] == b[j - 1] ? 0 : 1);
-      diagonal = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, substitute});
-    }
-  }
-  return row[b.size()];
 }
 
 // Mean position of the markers with any of `tags`; false if none.
@@ -170,16 +157,7 @@ const std::vector<std::string>& KnownMarkerTags() {
 }
 
 std::string NearestTag(const std::string& tag, const std::vector<std::string>& known) {
-  std::string best;
-  int best_distance = 1 << 30;
-  for (const std::string& k : known) {
-    const int d = EditDistance(tag, k);
-    if (d < best_distance) {
-      best_distance = d;
-      best = k;
-    }
-  }
-  return best;
+  return NearestWord(tag, known, 1 << 20);
 }
 
 std::vector<ActorWarning> ActorWarnings(const Actor& actor) {

@@ -1,5 +1,6 @@
 #include "core/options.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -7,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/text.h"
 
 namespace hmc {
 namespace {
@@ -74,6 +76,7 @@ std::vector<T> ParseList(const YAML::Node& node, const std::string& name,
 
 void AssignFromNode(const OptionFields::Field& field, const YAML::Node& node,
                     const std::filesystem::path& file, int line) {
+  field.origin = line > 0 ? fmt::format("{}:{}", file.string(), line) : file.string();
   std::visit(
       [&](auto* pointer) {
         using T = std::remove_pointer_t<decltype(pointer)>;
@@ -107,7 +110,11 @@ void Walk(const YAML::Node& node, const std::string& prefix,
       if (f.name.rfind(name + ".", 0) == 0) is_group = true;
     }
     if (!is_group) {
-      ThrowInputError(file, line, "unknown option '{}'", name);
+      std::vector<std::string> names;
+      for (const auto& f : fields.fields()) names.push_back(f.name);
+      const std::string near = NearestWord(name, names, 2);
+      ThrowInputError(file, line, "unknown option '{}'{}", name,
+                      near.empty() ? "" : "; did you mean '" + near + "'?");
     }
     Walk(entry.second, name, fields, file);
   }
@@ -115,35 +122,106 @@ void Walk(const YAML::Node& node, const std::string& prefix,
 
 }  // namespace
 
-void OptionFields::AddField(const std::string& name, Pointer pointer,
-                            std::string help) {
+OptionFields::Range OptionFields::AddField(const std::string& name, Pointer pointer,
+                                           std::string help) {
   const std::string full = group_.empty() ? name : group_ + "." + name;
   HMC_CHECK_MSG(Find(full) == nullptr, "duplicate option " + full);
-  fields_.push_back({full, std::move(help), pointer});
+  Field field;
+  field.name = full;
+  field.help = std::move(help);
+  field.pointer = pointer;
+  fields_.push_back(std::move(field));
+  return Range(this, fields_.size() - 1);
 }
 
-void OptionFields::Add(const std::string& name, double* field,
-                       std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, double* field, std::string help) {
+  return AddField(name, field, std::move(help));
 }
-void OptionFields::Add(const std::string& name, int* field, std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, int* field, std::string help) {
+  return AddField(name, field, std::move(help));
 }
-void OptionFields::Add(const std::string& name, bool* field,
-                       std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, bool* field, std::string help) {
+  return AddField(name, field, std::move(help));
 }
-void OptionFields::Add(const std::string& name, std::string* field,
-                       std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, std::string* field,
+                                      std::string help) {
+  return AddField(name, field, std::move(help));
 }
-void OptionFields::Add(const std::string& name, std::vector<double>* field,
-                       std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, std::vector<double>* field,
+                                      std::string help) {
+  return AddField(name, field, std::move(help));
 }
-void OptionFields::Add(const std::string& name,
-                       std::vector<std::string>* field, std::string help) {
-  AddField(name, field, std::move(help));
+OptionFields::Range OptionFields::Add(const std::string& name, std::vector<std::string>* field,
+                                      std::string help) {
+  return AddField(name, field, std::move(help));
+}
+
+OptionFields::Range& OptionFields::Range::AtLeast(double lo) {
+  field().lo = lo;
+  field().lo_open = false;
+  return *this;
+}
+OptionFields::Range& OptionFields::Range::Above(double lo) {
+  field().lo = lo;
+  field().lo_open = true;
+  return *this;
+}
+OptionFields::Range& OptionFields::Range::AtMost(double hi) {
+  field().hi = hi;
+  field().hi_open = false;
+  return *this;
+}
+OptionFields::Range& OptionFields::Range::Below(double hi) {
+  field().hi = hi;
+  field().hi_open = true;
+  return *this;
+}
+OptionFields::Range& OptionFields::Range::OneOf(std::vector<std::string> choices) {
+  field().choices = std::move(choices);
+  return *this;
+}
+
+std::string OptionFields::RangeText(const Field& f) {
+  if (!f.choices.empty()) return fmt::format("one of {}", fmt::join(f.choices, ", "));
+  const bool has_lo = f.lo > -HUGE_VAL, has_hi = f.hi < HUGE_VAL;
+  if (has_lo && has_hi) {
+    return fmt::format("in {}{}, {}{}", f.lo_open ? "(" : "[", f.lo, f.hi, f.hi_open ? ")" : "]");
+  }
+  if (has_lo) return fmt::format("{} {}", f.lo_open ? ">" : ">=", f.lo);
+  if (has_hi) return fmt::format("{} {}", f.hi_open ? "<" : "<=", f.hi);
+  return "";
+}
+
+std::string OptionFields::RangeError() const {
+  for (const Field& f : fields_) {
+    auto in_range = [&](double v) {
+      return (f.lo_open ? v > f.lo : v >= f.lo) && (f.hi_open ? v < f.hi : v <= f.hi);
+    };
+    auto allowed = [&](const std::string& v) {
+      return f.choices.empty() || std::find(f.choices.begin(), f.choices.end(), v) != f.choices.end();
+    };
+    const bool ok = std::visit(
+        [&](auto* pointer) {
+          using T = std::remove_pointer_t<decltype(pointer)>;
+          if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
+            return in_range(static_cast<double>(*pointer));
+          } else if constexpr (std::is_same_v<T, std::string>) {
+            return allowed(*pointer);
+          } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+            return std::all_of(pointer->begin(), pointer->end(), in_range);
+          } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
+            return std::all_of(pointer->begin(), pointer->end(), allowed);
+          } else {
+            return true;
+          }
+        },
+        f.pointer);
+    if (!ok) {
+      return fmt::format("{}option '{}' = {} must be {}", f.origin.empty() ? "" : f.origin + ": ",
+                         f.name, ValueString(f), RangeText(f));
+    }
+  }
+  return "";
 }
 
 const OptionFields::Field* OptionFields::Find(const std::string& name) const {

@@ -4,13 +4,20 @@
 // as default member initialisers; the registry only points at the fields.
 //
 // An options struct provides
-//   void Register(OptionFields* fields);   // fields->Add("name", &name_, "help (unit)")
+//   void Register(OptionFields* fields);   // each field once: name, help, range
 //   bool Check() const;                     // logs the offending option
-// and writes Check() with the CHECK_OPTION macros below (as COLMAP does):
+// Register declares each field with its range, so that one declaration
+// gives the YAML key, the CLI flag, the options_used.yaml entry and the
+// check of the range:
+//   fields->Add("tolerance_mm", &tolerance_mm, "help (mm)").AtLeast(0);
+//   fields->Add("fraction", &fraction, "help").In(0, 1);
+//   fields->Add("loss", &loss, "none | huber").OneOf({"none", "huber"});
+// Check() starts with CHECK_OPTION_LIMITS() (the declared ranges) and adds
+// only what involves more than one field, with the CHECK_OPTION macros
+// below (as COLMAP does):
 //   bool Check() const {
-//     CHECK_OPTION_GE(tolerance_mm, 0.0);
-//     CHECK_OPTION_IN(fraction, 0.0, 1.0);
-//     CHECK_OPTION(!methods.empty());
+//     CHECK_OPTION_LIMITS();
+//     CHECK_OPTION_LE(min_frames, max_frames);
 //     return true;
 //   }
 // Each logs the failed condition with the option's value and makes Check()
@@ -24,6 +31,7 @@
 // (`index: {min_volume: ...}`) and prefixes the CLI flag (`--index.min_volume`).
 #pragma once
 
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -55,19 +63,49 @@ class OptionFields {
     std::string name;  // "group.name" or "name"
     std::string help;
     Pointer pointer;
+    // The declared range (numbers, and each item of a list of numbers):
+    // lo <= value (lo < value if lo_open), likewise hi; `choices`: the
+    // values a text (or each item of a list of text) may take ({} = any).
+    double lo = -HUGE_VAL, hi = HUGE_VAL;
+    bool lo_open = false, hi_open = false;
+    std::vector<std::string> choices;
+    // Where the value was last set ("run.yaml:12", "--gate_px"; "" = the
+    // default), named when it is out of range.
+    mutable std::string origin;
+  };
+
+  // What Add returns: the range of the field just added, declared with it.
+  class Range {
+   public:
+    Range(OptionFields* fields, size_t index) : fields_(fields), index_(index) {}
+    Range& AtLeast(double lo);  // lo <= value
+    Range& Above(double lo);    // lo < value
+    Range& AtMost(double hi);   // value <= hi
+    Range& Below(double hi);    // value < hi
+    Range& In(double lo, double hi) { return AtLeast(lo).AtMost(hi); }
+    Range& OneOf(std::vector<std::string> choices);
+
+   private:
+    Field& field() { return fields_->fields_[index_]; }
+    OptionFields* fields_;
+    size_t index_;
   };
 
   // Fields added after this call are named "<group>.<name>" ("" = no group).
   void SetGroup(std::string group) { group_ = std::move(group); }
 
-  void Add(const std::string& name, double* field, std::string help);
-  void Add(const std::string& name, int* field, std::string help);
-  void Add(const std::string& name, bool* field, std::string help);
-  void Add(const std::string& name, std::string* field, std::string help);
-  void Add(const std::string& name, std::vector<double>* field,
-           std::string help);
-  void Add(const std::string& name, std::vector<std::string>* field,
-           std::string help);
+  Range Add(const std::string& name, double* field, std::string help);
+  Range Add(const std::string& name, int* field, std::string help);
+  Range Add(const std::string& name, bool* field, std::string help);
+  Range Add(const std::string& name, std::string* field, std::string help);
+  Range Add(const std::string& name, std::vector<double>* field, std::string help);
+  Range Add(const std::string& name, std::vector<std::string>* field, std::string help);
+
+  // The first field outside its declared range, as "origin: option 'name'
+  // = value must be ..." ("" = every field in range).
+  std::string RangeError() const;
+  // The declared range in words ("in [0, 1]", ">= 0", "one of a, b"; "" = any).
+  static std::string RangeText(const Field& field);
 
   // Sets fields from a YAML mapping (nested by group). Unknown keys, wrong
   // types and non-finite numbers throw InputError naming `file` and the line.
@@ -87,7 +125,7 @@ class OptionFields {
   const Field* Find(const std::string& name) const;
 
  private:
-  void AddField(const std::string& name, Pointer pointer, std::string help);
+  Range AddField(const std::string& name, Pointer pointer, std::string help);
   std::string group_;
   std::vector<Field> fields_;
 };
@@ -122,6 +160,22 @@ class OptionFields {
                     (a), (lo), (hi));                                    \
       return false;                                                      \
     }                                                                    \
+  } while (0)
+
+// True if every field of `options` is in the range its Register declares;
+// else logs the first that is not. What CHECK_OPTION_LIMITS() runs.
+template <typename Options>
+bool CheckDeclaredRanges(const Options& options) {
+  OptionFields fields;
+  // Register only takes the fields' addresses; nothing is written.
+  const_cast<Options&>(options).Register(&fields);
+  const std::string error = fields.RangeError();
+  if (!error.empty()) spdlog::error("invalid option: {}", error);
+  return error.empty();
+}
+#define CHECK_OPTION_LIMITS()                                            \
+  do {                                                                   \
+    if (!::hmc::CheckDeclaredRanges(*this)) return false;                \
   } while (0)
 
 // Throws InputError if options.Check() fails (Check logs the reason): how a

@@ -18,12 +18,18 @@ struct ExampleOptions {
   double grid_cell_mm = 2.0;   // in a group
 
   void Register(OptionFields* fields) {
-    fields->Add("threshold_mm", &threshold_mm, "threshold (mm)");
-    fields->Add("count", &count, "count");
+    fields->Add("threshold_mm", &threshold_mm, "threshold (mm)").Above(0).AtMost(10);
+    fields->Add("count", &count, "count").In(1, 5);
     fields->Add("enabled", &enabled, "switch");
-    fields->Add("mode", &mode, "mode");
+    fields->Add("mode", &mode, "mode").OneOf({"uv", "xyz"});
     fields->SetGroup("grid");
-    fields->Add("cell_mm", &grid_cell_mm, "cell size (mm)");
+    fields->Add("cell_mm", &grid_cell_mm, "cell size (mm)").AtLeast(0.5);
+    fields->SetGroup("");
+  }
+  bool Check() const {
+    CHECK_OPTION_LIMITS();
+    CHECK_OPTION(mode == "uv" || count >= 2);  // what involves two fields
+    return true;
   }
 };
 
@@ -108,6 +114,43 @@ TEST(OptionsTest, ToYamlRoundTripsEveryField) {
   EXPECT_EQ(read.enabled, written.enabled);
   EXPECT_EQ(read.mode, written.mode);
   EXPECT_EQ(read.grid_cell_mm, written.grid_cell_mm);
+}
+
+// Issue 52: the range is declared with the field, and the check names
+// where the value came from (the config's file and line, or the flag).
+TEST(OptionsTest, DeclaredRangesAreCheckedAndNameWhereTheValueCameFrom) {
+  EXPECT_TRUE(ExampleOptions().Check());
+  // Each field just outside its range (and just inside: still valid).
+  const std::vector<std::pair<std::string, bool>> cases = {
+      {"threshold_mm: 0", false},    {"threshold_mm: 1e-9", true}, {"threshold_mm: 10", true},
+      {"threshold_mm: 10.01", false}, {"count: 0", false},          {"count: 5", true},
+      {"count: 6", false},           {"mode: xyz", true},          {"mode: xy", false},
+      {"grid: {cell_mm: 0.49}", false}};
+  for (const auto& [text, valid] : cases) {
+    ExampleOptions options;
+    OptionFields fields;
+    options.Register(&fields);
+    const auto file = TempFile("hmc_options_range.yaml", "enabled: true\n" + text + "\n");
+    fields.LoadYamlFile(file);
+    EXPECT_EQ(options.Check(), valid) << text;
+    const std::string error = fields.RangeError();
+    EXPECT_EQ(error.empty(), valid) << text;
+    if (!valid) {
+      EXPECT_NE(error.find("hmc_options_range.yaml:2"), std::string::npos) << error;
+    }
+  }
+  ExampleOptions options;
+  OptionFields fields;
+  options.Register(&fields);
+  fields.Set("count", "9", "--count");
+  EXPECT_NE(fields.RangeError().find("--count: option 'count' = 9 must be in [1, 5]"),
+            std::string::npos)
+      << fields.RangeError();
+  // A cross-field condition stays in Check().
+  options.count = 1;
+  options.mode = "xyz";
+  EXPECT_TRUE(fields.RangeError().empty());
+  EXPECT_FALSE(options.Check());
 }
 
 }  // namespace

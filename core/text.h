@@ -41,6 +41,14 @@ std::vector<std::string_view> SplitWhitespace(std::string_view s);
 // `text` without a leading UTF-8 byte-order mark.
 std::string_view StripBom(std::string_view text);
 
+// Levenshtein distance (insert, delete, substitute) with a swap of two
+// neighbouring characters counting as one edit ("fsp" -> "fps": 1).
+int EditDistance(std::string_view a, std::string_view b);
+// The candidate nearest to `word` by EditDistance, or "" when none is
+// within `max_distance` (ties: the first). For "did you mean ...?".
+std::string NearestWord(std::string_view word, const std::vector<std::string>& candidates,
+                        int max_distance);
+
 // Calls body(line_number, line) for every line of `text` (BOM stripped,
 // '\r' of \r\n removed), blank lines included.
 template <typename Body>

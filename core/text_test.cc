@@ -1,6 +1,8 @@
 #include "core/text.h"
 
+#include <algorithm>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -91,6 +93,42 @@ TEST(TextTest, Utf8ValidityFollowsTheStandard) {
                                 "\xff", "ab\xe6\x97"}) {
     EXPECT_FALSE(IsValidUtf8(bad)) << bad;
   }
+}
+
+}  // namespace
+}  // namespace hmc
+
+namespace hmc {
+namespace {
+
+// Invariants of a distance on random words: zero only for equal words,
+// symmetric, blind to a shared suffix, at most the longer length, one per
+// edit; a swap of neighbours costs one (what "did you mean" relies on).
+TEST(TextTest, EditDistanceIsADistanceAndCountsSwapsAsOne) {
+  std::mt19937 rng(52);
+  auto word = [&] {
+    std::string w(std::uniform_int_distribution<int>(0, 7)(rng), 'a');
+    for (char& c : w) c = static_cast<char>('a' + std::uniform_int_distribution<int>(0, 3)(rng));
+    return w;
+  };
+  for (int trial = 0; trial < 300; ++trial) {
+    const std::string a = word(), b = word(), c = word();
+    EXPECT_EQ(EditDistance(a, b) == 0, a == b);
+    EXPECT_EQ(EditDistance(a, b), EditDistance(b, a));
+    // Restricted swaps (a string edited once only) break the triangle
+    // inequality in general; appending a common suffix changes nothing.
+    EXPECT_EQ(EditDistance(a + c, b + c), EditDistance(a, b));
+    EXPECT_LE(EditDistance(a, b), static_cast<int>(std::max(a.size(), b.size())));
+    EXPECT_LE(EditDistance(a, a + "x"), 1);
+    if (a.size() >= 2) {
+      std::string swapped = a;
+      std::swap(swapped[0], swapped[1]);
+      EXPECT_LE(EditDistance(a, swapped), 1);
+    }
+  }
+  EXPECT_EQ(EditDistance("fsp", "fps"), 1);
+  EXPECT_EQ(NearestWord("--fsp", {"--out", "--fps", "--frames"}, 2), "--fps");
+  EXPECT_EQ(NearestWord("--zzzzzz", {"--out", "--fps"}, 2), "");
 }
 
 }  // namespace

@@ -34,14 +34,19 @@ const std::vector<std::string>& PipelineStages() {
 void RunOptions::Register(OptionFields* fields) {
   fields->Add("from", &from, "first stage to redo even if complete (\"\" = redo only what changed)");
   fields->Add("to", &to, "last stage to run");
-  fields->Add("frames", &frames, "frame range A:B of the footage (\"\" = all)");
+  footage.Register(fields);
+  fields->Add("reference_frame", &reference_frame,
+              "frame where the actor is near neutral, where track names the dots (0 = track's "
+              "default, configs/track.yaml)")
+      .AtLeast(0);
   fields->Add("calibrate", &calibrate,
               "refine the rig from the helmet tags (false: use --calibration as it is)");
   fields->Add("export", &export_formats,
               "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
   fields->Add("fps", &fps,
               "frame rate of the mesh caches (frames/s; 0 = the video's own, 30 for an image "
-              "sequence, which declares none)");
+              "sequence, which declares none)")
+      .In(0, 1000);
 }
 
 namespace {
@@ -79,16 +84,25 @@ bool RunOptions::Check() const {
     fail(fmt::format("to '{}' is not a stage ({})", to, fmt::join(PipelineStages(), ", ")));
   }
   if (ok && !from.empty() && StageIndex(from) > StageIndex(to)) fail("from comes after to");
-  try {
-    ParseFrameRange(frames, "frames");
-  } catch (const InputError& e) {
-    fail(e.what());
-  }
-  if (!(fps >= 0 && fps <= 1000)) fail("fps must be in [0, 1000] (0 = the footage's own)");
+  if (!CheckDeclaredRanges(*this) || !footage.Check()) ok = false;
   for (const std::string& f : ExportFormats(export_formats)) {
     if (f != "usda" && f != "mdd" && f != "obj") fail(fmt::format("export format '{}' is not usda, mdd or obj", f));
   }
   return ok;
+}
+
+const std::map<std::pair<std::string, std::string>, std::string>& RunWideKeys() {
+  static const std::map<std::pair<std::string, std::string>, std::string> keys = [] {
+    std::map<std::pair<std::string, std::string>, std::string> k;
+    for (const char* stage : {"calibrate", "track"}) {
+      for (const char* key : {"cam0", "cam1", "frames", "offset1"}) {
+        k[{stage, key}] = std::string("run.") + key;
+      }
+    }
+    k[{"track", "reference_frame"}] = "run.reference_frame";
+    return k;
+  }();
+  return keys;
 }
 
 std::string RunSummary::BriefReport() const {
@@ -106,7 +120,8 @@ namespace {
 // The run config: a mapping from stage name to that stage's options (the
 // keys of configs/<stage>.yaml). Each section is handed to the stage's
 // command as --config, and its canonical text is the stage's options key.
-std::map<std::string, std::string> ReadRunConfig(const std::string& file) {
+std::map<std::string, std::string> ReadRunConfig(const RunInput& input) {
+  const std::string& file = input.config;
   std::map<std::string, std::string> sections;
   if (file.empty()) return sections;
   const YAML::Node root = LoadYamlFile(file);
@@ -125,6 +140,15 @@ std::map<std::string, std::string> ReadRunConfig(const std::string& file) {
     if (!item.second.IsMap() && !item.second.IsNull()) {
       ThrowInputError(file, item.second.Mark().line + 1, "'{}' must be a mapping of options", stage);
     }
+    for (const auto& option : item.second) {
+      const auto moved = RunWideKeys().find({stage, option.first.Scalar()});
+      if (moved != RunWideKeys().end()) {
+        ThrowInputError(file, option.first.Mark().line + 1,
+                        "'{}.{}' is set once for the whole run: give it as {} (or the flag --{})",
+                        stage, option.first.Scalar(), moved->second, option.first.Scalar());
+      }
+    }
+    if (input.check_section) input.check_section(stage, item.second, file);
     YAML::Emitter out;
     out << item.second;
     sections[stage] = std::string(out.c_str()) + "\n";
@@ -176,7 +200,11 @@ class Pipeline {
 
 std::vector<std::string> Pipeline::FootageFlags() const {
   std::vector<std::string> flags;
-  if (!options_.frames.empty()) flags.insert(flags.end(), {"--frames", options_.frames});
+  const FootageOptions& f = options_.footage;
+  if (!f.cam0.empty()) flags.insert(flags.end(), {"--cam0", f.cam0});
+  if (!f.cam1.empty()) flags.insert(flags.end(), {"--cam1", f.cam1});
+  if (!f.frames.empty()) flags.insert(flags.end(), {"--frames", f.frames});
+  if (f.offset1 != 0) flags.insert(flags.end(), {"--offset1", std::to_string(f.offset1)});
   return flags;
 }
 
@@ -185,13 +213,16 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
   const HelmetRig rig = ReadCalibration(input_.calibration);
   std::vector<std::string> names;
   for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  FootageOptions footage;
-  footage.frames = options_.frames;
-  const FootageReader reader(input_.shot, names, footage);
+  const FootageReader reader(input_.shot, names, options_.footage);
   for (int c = 0; c < reader.num_cameras(); ++c) {
     key->AddInput("footage." + reader.camera_name(c), reader.source(c));
   }
-  key->AddInputText("frames", options_.frames);
+  key->AddInputText("frames", options_.footage.frames);
+  // Added only when set, so that a workspace run before these were run-wide
+  // keeps its stages.
+  if (options_.footage.offset1 != 0) {
+    key->AddInputText("offset1", std::to_string(options_.footage.offset1));
+  }
 }
 
 std::vector<std::string> Pipeline::FrameRateFlags() const {
@@ -199,7 +230,7 @@ std::vector<std::string> Pipeline::FrameRateFlags() const {
   const HelmetRig rig = ReadCalibration(input_.calibration);
   std::vector<std::string> names;
   for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  const double fps = FootageReader(input_.shot, names, FootageOptions()).fps();
+  const double fps = FootageReader(input_.shot, names, options_.footage).fps();
   if (!(fps > 0)) return {};  // an image sequence: the commands' default
   return {"--fps", fmt::format("{}", fps)};
 }
@@ -256,6 +287,9 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     AddFootageInputs(&key);
     key.AddInput("calibration", calibration);
     key.AddInputText("actor", actor_hash_);
+    if (options_.reference_frame > 0) {
+      key.AddInputText("reference_frame", std::to_string(options_.reference_frame));
+    }
     plan.run = [this, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
                                        calibration.string(), "--actor", input_.actor, "--out",
@@ -263,6 +297,9 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
                                        (dir / "diagnostics.json").string()};
       const std::vector<std::string> footage = FootageFlags();
       args.insert(args.end(), footage.begin(), footage.end());
+      if (options_.reference_frame > 0) {
+        args.insert(args.end(), {"--reference_frame", std::to_string(options_.reference_frame)});
+      }
       return RunCommand("track", args, dir);
     };
   } else if (stage == "triangulate") {
@@ -353,7 +390,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
 
 RunSummary Pipeline::Run() {
   const auto start = std::chrono::steady_clock::now();
-  config_ = ReadRunConfig(input_.config);
+  config_ = ReadRunConfig(input_);
   // The user's calibration is checked here, so that what is wrong with it
   // names that file, not the workspace's copy a later stage reads.
   const HelmetRig rig = ReadCalibration(input_.calibration);

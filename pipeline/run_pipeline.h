@@ -6,23 +6,33 @@
 // on the folder before it, and a complete stage is not redone.
 #pragma once
 
+#include <filesystem>
 #include <functional>
+#include <map>
+#include <utility>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "core/options.h"
+#include "tracking/footage_reader.h"
 
 namespace hmc {
 
 // The stages, in order; also the workspace's folder names.
 const std::vector<std::string>& PipelineStages();
 
+// What a user sets once for the whole run (`run:` of the run config, or
+// flags): the footage's cameras and frames, which every stage that reads
+// footage shares (docs/pipeline.md, "Options set once for the run").
 struct RunOptions {
   std::string from;         // first stage to redo even if complete ("" = none forced)
   std::string to = "report";  // last stage to run
-  std::string frames;       // frame range A:B of the footage ("" = all)
+  // cam0, cam1 (video or image folder), frames (A:B), offset1 (cam1's frame
+  // offset): passed to calibrate and track; not keys of their sections.
+  FootageOptions footage;
+  int reference_frame = 0;  // frame where the actor is near neutral, for track (0 = track's own default)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
@@ -31,12 +41,23 @@ struct RunOptions {
   bool Check() const;
 };
 
+// The keys a stage's section of the run config may not hold because the
+// run sets them once (`run:`): {stage, key} -> where it moved ("run.offset1").
+const std::map<std::pair<std::string, std::string>, std::string>& RunWideKeys();
+
 struct RunInput {
   std::string shot;         // shot folder (footage, optional ground truth)
   std::string actor;        // actor package
   std::string calibration;  // nominal calibration.yaml (or the rig's calibration)
   std::string out;          // workspace folder WORK
   std::string config;       // run config: `run:` (RunOptions, read by hmc run) and a section per stage with that stage's options ("" = defaults)
+  // Checks one stage's section of `config` as that stage's command would
+  // read it (keys, types, ranges; throws InputError naming the file and
+  // line). hmc run checks every section with it before the first stage
+  // runs; empty: sections are checked by the stages themselves.
+  std::function<void(const std::string& stage, const YAML::Node& section,
+                     const std::filesystem::path& file)>
+      check_section;
 };
 
 // Runs one `hmc` command line in this process (args without the program

@@ -216,6 +216,60 @@ TEST(RunPipelineTest, TheRunsFrameRateReachesTheSolveAndTheExports) {
   EXPECT_FALSE(options.Check());
 }
 
+// Issue 52: what every stage that reads the footage shares is set once for
+// the run and reaches each of them; in a stage's section it is refused,
+// naming where it moved; every section is checked before any stage runs.
+TEST(RunPipelineTest, FootageOptionsAreSetOnceForTheRunAndSectionsCheckedFirst) {
+  Fixture fx;
+  FakeCommands commands;
+  RunOptions options;
+  options.footage.offset1 = 2;
+  options.footage.frames = "1:2";
+  options.reference_frame = 2;
+  RunPipeline(fx.input, options, std::ref(commands));
+  auto value_of = [&](const char* command, const std::string& flag) -> std::string {
+    const std::vector<std::string>& args = commands.args_of.at(command);
+    const auto it = std::find(args.begin(), args.end(), flag);
+    return it == args.end() || it + 1 == args.end() ? "" : *(it + 1);
+  };
+  for (const char* command : {"calibrate", "track"}) {
+    EXPECT_EQ(value_of(command, "--offset1"), "2") << command;
+    EXPECT_EQ(value_of(command, "--frames"), "1:2") << command;
+  }
+  EXPECT_EQ(value_of("track", "--reference_frame"), "2");
+
+  for (const std::string config : {"track:\n  offset1: 1\n", "calibrate:\n  frames: 1:2\n",
+                                   "track:\n  reference_frame: 3\n"}) {
+    Fixture f;
+    FakeCommands none;
+    WriteFileAtomic(f.dir.path() / "run.yaml", config);
+    f.input.config = (f.dir.path() / "run.yaml").string();
+    try {
+      RunPipeline(f.input, RunOptions{}, std::ref(none));
+      ADD_FAILURE() << config;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("run.yaml:2"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("give it as run."), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(none.calls.empty());
+  }
+
+  // The checker sees every stage's section before the first stage runs.
+  Fixture f;
+  FakeCommands none;
+  WriteFileAtomic(f.dir.path() / "run.yaml", "track:\n  threads: 1\nsolve:\n  bad: 1\n");
+  f.input.config = (f.dir.path() / "run.yaml").string();
+  std::vector<std::string> checked;
+  f.input.check_section = [&](const std::string& stage, const YAML::Node&, const fs::path& file) {
+    EXPECT_TRUE(none.calls.empty());
+    checked.push_back(stage);
+    if (stage == "solve") ThrowInputError(file, 4, "unknown option 'bad'");
+  };
+  EXPECT_THROW(RunPipeline(f.input, RunOptions{}, std::ref(none)), InputError);
+  EXPECT_EQ(checked, (std::vector<std::string>{"track", "solve"}));
+  EXPECT_TRUE(none.calls.empty());
+}
+
 TEST(RunPipelineTest, FromAndToChooseTheStages) {
   Fixture fx;
   FakeCommands commands;

@@ -19,46 +19,37 @@ namespace hmc {
 void JawOptions::Register(OptionFields* fields) {
   fields->Add("smoothness", &smoothness,
               "mu: temporal prior on second differences (mm^2 per deg^2, or per mm^2 for "
-              "protrude; 0 = off)");
+              "protrude; 0 = off)")
+      .In(0, 1e6);
   fields->Add("bound_margin", &bound_margin,
               "bounds: the dataset's jaw range widened by this fraction of it (at least 1 deg "
-              "/ 1 mm) on each side");
-  fields->Add("ridge", &ridge, "lambda: ridge on the global shape weights (mm^2 per unit weight^2)");
+              "/ 1 mm) on each side")
+      .In(0, 10);
+  fields->Add("ridge", &ridge, "lambda: ridge on the global shape weights (mm^2 per unit weight^2)")
+      .Above(0).AtMost(1e6);
   fields->Add("min_jaw_markers", &min_jaw_markers,
-              "fewer jaw markers present: the frame is interpolated");
+              "fewer jaw markers present: the frame is interpolated")
+      .In(2, 10000);
   fields->Add("min_marker_fraction", &min_marker_fraction,
               "a fit on fewer than this fraction of the shot's median jaw-marker count is "
-              "not trusted: the frame is interpolated (0 = off)");
+              "not trusted: the frame is interpolated (0 = off)")
+      .In(0, 1);
   fields->Add("max_residual_ratio", &max_residual_ratio,
               "> 0: a fit whose jaw-marker residual exceeds this many times the shot's median is "
-              "not trusted: the frame is interpolated (0 = off)");
+              "not trusted: the frame is interpolated (0 = off, else at least 1)")
+      .In(0, 1e6);
   fields->Add("lip_prefix", &lip_prefix,
               "markers named so (or tagged lower_lip) join the jaw markers");
   fields->Add("max_solver_iterations", &max_solver_iterations,
-              "Ceres iterations per frame");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "Ceres iterations per frame")
+      .In(1, 1000);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
 }
 
 bool JawOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("jaw options: {}", message);
-    ok = false;
-  };
-  if (!(smoothness >= 0 && smoothness <= 1e6)) fail("smoothness must be in [0, 1e6]");
-  if (!(bound_margin >= 0 && bound_margin <= 10)) fail("bound_margin must be in [0, 10]");
-  if (!(ridge > 0 && ridge <= 1e6)) fail("ridge must be in (0, 1e6]");
-  if (min_jaw_markers < 2 || min_jaw_markers > 10000) fail("min_jaw_markers must be in [2, 10000]");
-  if (!(min_marker_fraction >= 0 && min_marker_fraction <= 1)) {
-    fail("min_marker_fraction must be in [0, 1]");
-  }
-  if (!(max_residual_ratio == 0 || (max_residual_ratio >= 1 && max_residual_ratio <= 1e6))) {
-    fail("max_residual_ratio must be 0 (off) or in [1, 1e6]");
-  }
-  if (max_solver_iterations < 1 || max_solver_iterations > 1000) {
-    fail("max_solver_iterations must be in [1, 1000]");
-  }
-  return ok;
+  CHECK_OPTION_LIMITS();
+  CHECK_OPTION(max_residual_ratio == 0 || max_residual_ratio >= 1);
+  return true;
 }
 
 std::string JawOutput::BriefReport() const {

@@ -20,55 +20,46 @@
 namespace hmc {
 
 void StabilizeOptions::Register(OptionFields* fields) {
-  fields->Add("weighting", &weighting, "motion | tags | both (docs/stabilization.md)");
-  fields->Add("noise_mm", &noise_mm, "sigma: bundle noise assumed by the motion weights (mm)");
-  fields->Add("loss", &loss, "robust loss of the reweighting: none | huber | cauchy");
-  fields->Add("loss_scale_mm", &loss_scale_mm, "residual scale of the robust loss (mm)");
+  fields->Add("weighting", &weighting, "motion | tags | both (docs/stabilization.md)")
+      .OneOf({"motion", "tags", "both"});
+  fields->Add("noise_mm", &noise_mm, "sigma: bundle noise assumed by the motion weights (mm)")
+      .Above(0).AtMost(10);
+  fields->Add("loss", &loss, "robust loss of the reweighting: none | huber | cauchy")
+      .OneOf({"none", "huber", "cauchy"});
+  fields->Add("loss_scale_mm", &loss_scale_mm, "residual scale of the robust loss (mm)")
+      .Above(0).AtMost(100);
   fields->Add("expression", &expression, "fit global shape weights jointly with the pose");
   fields->Add("shot_weights", &shot_weights,
               "second pass with weights from the first pass's per-marker residuals");
   fields->Add("expression_ridge", &expression_ridge,
-              "ridge on the shape weights (mm^2 per unit weight^2)");
-  fields->Add("max_iterations", &max_iterations, "reweighting rounds per frame at most");
+              "ridge on the shape weights (mm^2 per unit weight^2)")
+      .Above(0).AtMost(1e6);
+  fields->Add("max_iterations", &max_iterations, "reweighting rounds per frame at most")
+      .In(1, 10000);
   fields->Add("tolerance_mm", &tolerance_mm,
-              "converged: a round of reweighting moves no marker further (mm)");
-  fields->Add("min_markers", &min_markers, "fewer usable markers: the frame is interpolated");
-  fields->Add("min_weight", &min_weight, "prior weight (of the largest) a usable marker needs");
+              "converged: a round of reweighting moves no marker further (mm)")
+      .Above(0).AtMost(1);
+  fields->Add("min_markers", &min_markers, "fewer usable markers: the frame is interpolated")
+      .In(3, 10000);
+  fields->Add("min_weight", &min_weight, "prior weight (of the largest) a usable marker needs")
+      .In(0, 1);
   fields->Add("bad_track_mm", &bad_track_mm,
               "a trusted marker (prior weight >= 0.5) whose median residual exceeds this is "
-              "reported (mm)");
+              "reported (mm)")
+      .Above(0);
   fields->Add("temporal_prior", &temporal_prior,
               "poses of frames the dataset explains less well informed by their neighbours");
   fields->Add("smooth_frames", &smooth_frames,
-              "centred moving-average window over poses (frames; 0 or 1 = off)");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "centred moving-average window over poses (frames; 0 or 1 = off)")
+      .In(0, 1000);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
 }
 
 bool StabilizeOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("stabilize options: {}", message);
-    ok = false;
-  };
-  if (weighting != "motion" && weighting != "tags" && weighting != "both") {
-    fail(fmt::format("weighting must be motion, tags or both, got '{}'", weighting));
-  }
+  CHECK_OPTION_LIMITS();
   RobustLoss parsed;
-  if (!ParseRobustLoss(loss, &parsed)) {
-    fail(fmt::format("loss must be none, huber or cauchy, got '{}'", loss));
-  }
-  if (!(noise_mm > 0 && noise_mm <= 10)) fail("noise_mm must be in (0, 10]");
-  if (!(loss_scale_mm > 0 && loss_scale_mm <= 100)) fail("loss_scale_mm must be in (0, 100]");
-  if (max_iterations < 1 || max_iterations > 10000) fail("max_iterations must be in [1, 10000]");
-  if (!(tolerance_mm > 0 && tolerance_mm <= 1)) fail("tolerance_mm must be in (0, 1]");
-  if (!(expression_ridge > 0 && expression_ridge <= 1e6)) {
-    fail("expression_ridge must be in (0, 1e6]");
-  }
-  if (min_markers < 3 || min_markers > 10000) fail("min_markers must be in [3, 10000]");
-  if (!(min_weight >= 0 && min_weight <= 1)) fail("min_weight must be in [0, 1]");
-  if (!(bad_track_mm > 0)) fail("bad_track_mm must be positive");
-  if (smooth_frames < 0 || smooth_frames > 1000) fail("smooth_frames must be in [0, 1000]");
-  return ok;
+  CHECK_OPTION(ParseRobustLoss(loss, &parsed));
+  return true;
 }
 
 std::string StabilizeOutput::BriefReport() const {

@@ -30,6 +30,27 @@ TEST(CliErrorsTest, CommandLineErrorsExitTwoAndSayWhat) {
   fs::remove_all(dir);
 }
 
+// Issue 52: `hmc --version`, an unknown flag named with a suggestion (was
+// "The following arguments were not expected: 60 --fps").
+TEST(CliErrorsTest, VersionPrintsAndAnUnknownFlagIsNamedWithASuggestion) {
+  const fs::path dir = FreshTestDir("hmc_cli_version", 1);
+  const CliResult version = RunHmc("--version", dir);
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_EQ(version.out.rfind("hmc 0.", 0), 0u) << version.out;
+  const CliResult fps = RunHmc("run --fsp 60", dir);
+  EXPECT_EQ(fps.exit_code, 2);
+  EXPECT_NE(fps.err.find("unknown option --fsp; did you mean --fps?"), std::string::npos)
+      << fps.err;
+  // Both spellings reach the same flag: the error is then about the value.
+  for (const std::string flag : {"--start_frame", "--start-frame"}) {
+    const CliResult r = RunHmc("convert a.pc2 b.pc2 " + flag + " x", dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_EQ(r.err.find("unknown option"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("start_frame"), std::string::npos) << r.err;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(CliErrorsTest, InputsThatAreNotFilesAreInputErrors) {
   const fs::path dir = FreshTestDir("hmc_cli_not_files", 1);
   WriteSmallActor(dir, 1, 24, 20);

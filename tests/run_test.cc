@@ -11,6 +11,7 @@
 #include <map>
 #include <set>
 #include <random>
+#include <tuple>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -80,6 +81,34 @@ std::map<std::string, std::string> DataFiles(const fs::path& work) {
     files[rel] = ReadFile(e.path());
   }
   return files;
+}
+
+// Issue 52: the whole run config is checked before any stage runs, and what
+// is wrong names the user's file and line (a bad solve: key used to fail
+// after calibrate..jaw had run, naming a temporary copy); a key the run sets
+// once is refused in a stage's section with where it moved.
+TEST_F(RunTest, ABadConfigIsRefusedBeforeAnyStageRunsNamingTheUsersFileAndLine) {
+  const fs::path& d = *dir_;
+  const std::vector<std::tuple<std::string, std::string, std::string>> cases = {
+      {"run:\n  to: solve\nsolve:\n  method: robust\n  lamda: 1\n", "bad.yaml:5", "lamda"},
+      {"track:\n  detect:\n    dot_size_px: many\n", "bad.yaml:3", "dot_size_px"},
+      {"stabilize:\n  noise_mm: -3\n", "bad.yaml:2", "noise_mm"},
+      {"jaw:\n  smoothness: 1\n  threads: -3\n", "bad.yaml:3", "'jaw.threads' = -3 must be >= 0"},
+      {"track:\n  offset1: 2\n", "bad.yaml:2", "run.offset1"},
+  };
+  for (const auto& [config, where, what] : cases) {
+    const fs::path work = d / "work_bad_config";
+    fs::remove_all(work);
+    WriteFileAtomic(d / "bad.yaml", config);
+    const CliResult r = RunHmc(
+        RunArgs(d / "shot", work) + fmt::format(" --config '{}'", (d / "bad.yaml").string()), d);
+    EXPECT_EQ(r.exit_code, 2) << config;
+    EXPECT_NE(r.err.find(where), std::string::npos) << config << r.err;
+    EXPECT_NE(r.err.find(what), std::string::npos) << config << r.err;
+    for (const char* stage : {"calibrate", "track"}) {
+      EXPECT_FALSE(fs::exists(work / stage)) << config;
+    }
+  }
 }
 
 TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {

@@ -350,8 +350,7 @@ std::string LikelyCause(const ReferenceLabelling& labelling, double pair_gap_mm)
       ": the dots pair up in stereo (rays {:.3f} mm apart, median) but do not fit the actor's "
       "marker layout: likely the actor or its markers.csv is not the one painted on this face "
       "(`hmc actor check`), or the reference frame holds an extreme expression or hidden dots: "
-      "choose another frame with --reference-frame N (`hmc track`; in `hmc run`, "
-      "`reference_frame: N` under `track:` of its --config)",
+      "choose another frame with --reference_frame N (`hmc track` and `hmc run`)",
       labelling.median_gap_mm);
 }
 

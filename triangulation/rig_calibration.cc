@@ -22,53 +22,42 @@ namespace hmc {
 
 void CalibrateOptions::Register(OptionFields* fields) {
   footage.Register(fields);
-  fields->Add("sample", &sample, "frames spread over the shot on which the tags are detected");
+  fields->Add("sample", &sample, "frames spread over the shot on which the tags are detected")
+      .In(1, 100000);
   fields->Add("refine", &refine,
-              "extrinsics | intrinsics (also each camera's focal length and principal point)");
+              "extrinsics | intrinsics (also each camera's focal length and principal point)")
+      .OneOf({"extrinsics", "intrinsics"});
   fields->Add("tag_layout", &tag_layout,
               "fixed (the nominal tag poses are trusted: helmet space is theirs) | free (also "
-              "solve every tag's pose)");
+              "solve every tag's pose)")
+      .OneOf({"fixed", "free"});
   fields->Add("gauge", &gauge,
               "with tag_layout free: tags (helmet space aligned with the nominal tag layout) | "
-              "cam0 (cam0 at its nominal pose)");
-  fields->Add("huber_px", &huber_px, "Huber loss scale on a corner's residual (px)");
+              "cam0 (cam0 at its nominal pose)")
+      .OneOf({"tags", "cam0"});
+  fields->Add("huber_px", &huber_px, "Huber loss scale on a corner's residual (px)").Above(0);
   fields->Add("knock_px", &knock_px,
               "a camera's tag corners moving by more than this between two parts of the shot: "
-              "the rig changed (px RMS)");
+              "the rig changed (px RMS)")
+      .Above(0);
   fields->Add("max_focal_sigma_pct", &max_focal_sigma_pct,
-              "refine intrinsics only if the tags determine the focal length to this (%)");
-  fields->Add("max_iterations", &max_iterations, "Ceres iterations");
+              "refine intrinsics only if the tags determine the focal length to this (%)")
+      .Above(0);
+  fields->Add("max_iterations", &max_iterations, "Ceres iterations").AtLeast(1);
   fields->Add("max_move_mm", &max_move_mm,
               "a camera solved farther than this from its nominal position is refused "
-              "(cameras swapped or duplicated, another rig's calibration) (mm)");
+              "(cameras swapped or duplicated, another rig's calibration) (mm)")
+      .Above(0);
   fields->Add("max_turn_deg", &max_turn_deg,
-              "a camera solved turned more than this from its nominal is refused likewise (deg)");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "a camera solved turned more than this from its nominal is refused likewise (deg)")
+      .Above(0).AtMost(180);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
   tags.Register(fields);
 }
 
 bool CalibrateOptions::Check() const {
-  bool ok = footage.Check() && tags.Check();
-  auto fail = [&](const std::string& message) {
-    spdlog::error("calibrate options: {}", message);
-    ok = false;
-  };
-  if (sample < 1 || sample > 100000) fail("sample must be in [1, 100000]");
-  if (!(max_move_mm > 0)) fail("max_move_mm must be positive");
-  if (!(max_turn_deg > 0 && max_turn_deg <= 180)) fail("max_turn_deg must be in (0, 180]");
-  if (refine != "extrinsics" && refine != "intrinsics") {
-    fail("refine must be extrinsics or intrinsics, got '" + refine + "'");
-  }
-  if (tag_layout != "fixed" && tag_layout != "free") {
-    fail("tag_layout must be fixed or free, got '" + tag_layout + "'");
-  }
-  if (gauge != "tags" && gauge != "cam0") fail("gauge must be tags or cam0, got '" + gauge + "'");
-  if (!(huber_px > 0)) fail("huber_px must be > 0");
-  if (!(knock_px > 0)) fail("knock_px must be > 0");
-  if (!(max_focal_sigma_pct > 0)) fail("max_focal_sigma_pct must be > 0");
-  if (max_iterations < 1) fail("max_iterations must be >= 1");
-  if (threads < 0) fail("threads must be >= 0");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return footage.Check() && tags.Check();
 }
 
 std::string CalibrateSummary::BriefReport() const {

@@ -21,39 +21,32 @@ namespace hmc {
 void TriangulateOptions::Register(OptionFields* fields) {
   fields->Add("gate_px", &gate_px,
               "largest reprojection residual of a view after refinement (px); larger: "
-              "mislabel or bad detection, dropped");
+              "mislabel or bad detection, dropped")
+      .Above(0).Below(1e4);
   fields->Add("noise_px", &noise_px,
-              "expected accuracy of the tracks (px; floor of the depth uncertainty)");
+              "expected accuracy of the tracks (px; floor of the depth uncertainty)")
+      .AtLeast(0).Below(100);
   fields->Add("min_ray_angle_deg", &min_ray_angle_deg,
-              "views whose rays meet at a smaller angle are not triangulated (deg)");
-  fields->Add("max_iterations", &max_iterations, "Gauss-Newton iterations of the refinement");
+              "views whose rays meet at a smaller angle are not triangulated (deg)")
+      .AtLeast(0).Below(90);
+  fields->Add("max_iterations", &max_iterations, "Gauss-Newton iterations of the refinement")
+      .In(1, 1000);
   fields->Add("consistency_p", &consistency_p,
               "false-rejection rate of the stereo consistency test: a bundle whose rays miss "
-              "by more than the shot's pixel noise explains at this level is dropped (0 = off)");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "by more than the shot's pixel noise explains at this level is dropped (0 = off)")
+      .AtLeast(0).Below(0.5);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
   fields->Add("dot_radius", &dot_radius,
-              "painted dot radius (mm), for the rim-depth correction with --actor");
+              "painted dot radius (mm), for the rim-depth correction with --actor")
+      .AtLeast(0).Below(20);
   fields->Add("dot_fit_radius", &dot_fit_radius,
-              "neutral vertices within this of a marker fit the skin's curvature (mm)");
+              "neutral vertices within this of a marker fit the skin's curvature (mm)")
+      .Above(0).Below(50);
 }
 
 bool TriangulateOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("triangulate options: {}", message);
-    ok = false;
-  };
-  if (!(gate_px > 0 && gate_px < 1e4)) fail("gate_px must be in (0, 1e4)");
-  if (!(noise_px >= 0 && noise_px < 100)) fail("noise_px must be in [0, 100)");
-  if (!(min_ray_angle_deg >= 0 && min_ray_angle_deg < 90)) {
-    fail("min_ray_angle_deg must be in [0, 90)");
-  }
-  if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations must be in [1, 1000]");
-  if (threads < 0) fail("threads must be >= 0");
-  if (!(consistency_p >= 0 && consistency_p < 0.5)) fail("consistency_p must be in [0, 0.5)");
-  if (!(dot_radius >= 0 && dot_radius < 20)) fail("dot_radius must be in [0, 20) mm");
-  if (!(dot_fit_radius > 0 && dot_fit_radius < 50)) fail("dot_fit_radius must be in (0, 50) mm");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 const char* TriangulationStatusName(TriangulationStatus status) {
