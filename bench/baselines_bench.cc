@@ -10,16 +10,16 @@
 
 #include <random>
 
+#include "bench/bench_util.h"
 #include "blending/baseline_blendshape.h"
 #include "blending/baseline_interp.h"
 #include "core/jaw.h"
-#include "synth/synth_actor.h"
 
 namespace hmc {
 namespace {
 
 struct Base {
-  Base() : actor(SynthesizeActor(SynthActorOptions())) {
+  Base() : actor(DefaultActor()) {
     data = ComputeShapeData(actor);
     std::mt19937 rng(7);
     const int N = data.num_shapes, V = actor.NumVertices();
@@ -37,13 +37,7 @@ struct Base {
       pose.open_deg =
           0.5 * (actor.shapes[a].jaw.open_deg + actor.shapes[b].jaw.open_deg);
       if (actor.jaw_rig) x = Skin(*actor.jaw_rig, pose, x);
-      BundleFrame bf;
-      bf.frame = f + 1;
-      for (int k = 0; k < data.num_bundles; ++k) {
-        bf.bundles[data.bundle_names[k]] =
-            EvaluateSurfacePoint(data.sites[k], actor.neutral.F, x);
-      }
-      frames.push_back(bf);
+      frames.push_back(BundlesOnMesh(data, actor.neutral.F, x, f + 1));
       jaw.push_back(pose);
     }
   }
@@ -57,7 +51,7 @@ struct Base {
     }
     return out;
   }
-  Actor actor;
+  const Actor& actor;
   ShapeData data;
   std::vector<BundleFrame> frames;
   std::vector<JawPose> jaw;

@@ -1,31 +1,14 @@
 // Index build on the default synthetic actor (SynthActorOptions defaults):
 // unskinned shapes, natural-neighbour weights, point clouds, tetrahedra and
 // grids. Counters: kept tetrahedra, index memory, peak resident memory of
-// the process (VmHWM). Results: docs/PERFORMANCE.md.
-#include <fstream>
-#include <string>
-
+// the process (maxrss). Results: docs/PERFORMANCE.md.
 #include <benchmark/benchmark.h>
 
+#include "bench/bench_util.h"
 #include "blending/solve_index_cache.h"
-#include "synth/synth_actor.h"
 
 namespace hmc {
 namespace {
-
-const Actor& DefaultActor() {
-  static const Actor actor = SynthesizeActor(SynthActorOptions());
-  return actor;
-}
-
-double PeakResidentMB() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-  }
-  return 0.0;
-}
 
 void BM_IndexBuild(benchmark::State& state) {
   const Actor& actor = DefaultActor();
@@ -47,7 +30,7 @@ void BM_IndexBuild(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(points);
   state.counters["tets_kept"] = static_cast<double>(kept);
   state.counters["index_MB"] = memory / 1048576.0;
-  state.counters["peak_RSS_MB"] = PeakResidentMB();
+  state.counters["peak_RSS_MB"] = PeakRssMb();
 }
 BENCHMARK(BM_IndexBuild)->Unit(benchmark::kSecond)->Iterations(1);
 

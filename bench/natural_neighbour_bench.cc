@@ -8,20 +8,11 @@
 #include <benchmark/benchmark.h>
 #include <Eigen/SparseCore>
 
+#include "bench/bench_util.h"
 #include "blending/natural_neighbour.h"
-#include "core/logging.h"
-#include "synth/synth_actor.h"
 
 namespace hmc {
 namespace {
-
-const Actor& DefaultActor() {
-  static const Actor actor = [] {
-    InitLogging(-1);
-    return SynthesizeActor(SynthActorOptions());
-  }();
-  return actor;
-}
 
 // Continuity measure: the largest L1 change of the weight rows along one
 // mesh edge, for edges across cell borders and inside cells.
@@ -53,11 +44,9 @@ std::vector<SurfacePoint> Sites(const Actor& actor) {
   return sites;
 }
 
-void BM_NaturalNeighbourUv(benchmark::State& state) {
+// Times the weights with `options`; counters: continuity and the sizes.
+void WeightsBench(benchmark::State& state, const NaturalNeighbourOptions& options) {
   const Actor& actor = DefaultActor();
-  NaturalNeighbourOptions options;
-  options.domain = "uv";
-  options.uv_resolution = static_cast<int>(state.range(0));
   NaturalNeighbourWeights nn;
   for (auto _ : state) {
     nn = ComputeNaturalNeighbourWeights(actor.neutral, Sites(actor), options);
@@ -66,6 +55,13 @@ void BM_NaturalNeighbourUv(benchmark::State& state) {
   CountEdgeJumps(actor, nn, state);
   state.counters["vertices"] = actor.NumVertices();
   state.counters["sites"] = static_cast<double>(actor.markers.size());
+}
+
+void BM_NaturalNeighbourUv(benchmark::State& state) {
+  NaturalNeighbourOptions options;
+  options.domain = "uv";
+  options.uv_resolution = static_cast<int>(state.range(0));
+  WeightsBench(state, options);
 }
 BENCHMARK(BM_NaturalNeighbourUv)
     ->Arg(512)->Arg(1024)->Arg(2048)
@@ -105,17 +101,9 @@ BENCHMARK(BM_NaturalNeighbourUvRasterError)
     ->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
 void BM_NaturalNeighbourGeodesic(benchmark::State& state) {
-  const Actor& actor = DefaultActor();
   NaturalNeighbourOptions options;
   options.domain = "geodesic";
-  NaturalNeighbourWeights nn;
-  for (auto _ : state) {
-    nn = ComputeNaturalNeighbourWeights(actor.neutral, Sites(actor), options);
-    benchmark::DoNotOptimize(nn);
-  }
-  CountEdgeJumps(actor, nn, state);
-  state.counters["vertices"] = actor.NumVertices();
-  state.counters["sites"] = static_cast<double>(actor.markers.size());
+  WeightsBench(state, options);
 }
 BENCHMARK(BM_NaturalNeighbourGeodesic)
     ->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();

@@ -30,8 +30,6 @@
 // pruned by min_tet_quality / max_edge_mm). Setup (actor, index) is cached across
 // iterations and benchmarks; counter peak_rss_mb = getrusage maxrss of the
 // process so far (monotonic: read it per sweep, in order).
-#include <sys/resource.h>
-
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -39,6 +37,7 @@
 #include <random>
 #include <tuple>
 
+#include "bench/bench_util.h"
 #include "blending/solve_method.h"
 #include "core/logging.h"
 #include "core/parallel.h"
@@ -49,12 +48,6 @@ namespace hmc {
 namespace {
 
 constexpr int kSequenceFrames = 48;
-
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
-}
 
 struct Setup {
   Actor actor;
@@ -145,12 +138,12 @@ std::unique_ptr<Setup> MakeSetup(const Config& c) {
   to.seed = 9;
   const TruthFrames truth = MakeTruthFrames(model, actor.markers, plan, to);
   s->frames = truth.bundles;
-  for (const JawFrame& j : truth.jaw) s->jaw.push_back(j.pose);
+  s->jaw = JawPoses(truth.jaw);
   to.kind = "performance";
   to.frames = kSequenceFrames;
   const TruthFrames performance = MakeTruthFrames(model, actor.markers, plan, to);
   s->sequence = performance.bundles;
-  for (const JawFrame& j : performance.jaw) s->sequence_jaw.push_back(j.pose);
+  s->sequence_jaw = JawPoses(performance.jaw);
   return s;
 }
 

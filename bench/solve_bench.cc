@@ -12,6 +12,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench/bench_util.h"
 #include "blending/lgi_solver.h"
 #include "blending/robust_solver.h"
 #include "blending/solve_index_cache.h"
@@ -28,24 +29,20 @@ struct Base {
                                         NaturalNeighbourOptions());
     regions = RegionsOfInfluence(nn);
     const std::vector<DatasetEntry> plan = PlanDataset(model, synth);
-    TruthFramesOptions o;
-    o.kind = "combos";
-    o.frames = 24;
-    o.seed = 11;
-    combos = MakeTruthFrames(model, actor.markers, plan, o);
-    o.kind = "performance";
-    o.frames = 48;
-    o.seed = 12;
-    performance = MakeTruthFrames(model, actor.markers, plan, o);
-    o.kind = "combos";
-    o.frames = 24;
-    o.seed = 11;
-    o.noise_mm = 0.5;
-    noisy_combos = MakeTruthFrames(model, actor.markers, plan, o);
-    o.kind = "performance";
-    o.frames = 48;
-    o.seed = 12;
-    noisy_performance = MakeTruthFrames(model, actor.markers, plan, o);
+    // 24 combinations (seed 11) or a 48-frame performance (seed 12).
+    const auto material = [&](const char* kind, double noise_mm) {
+      TruthFramesOptions o;
+      o.kind = kind;
+      const bool combo = o.kind == "combos";
+      o.frames = combo ? 24 : 48;
+      o.seed = combo ? 11 : 12;
+      o.noise_mm = noise_mm;
+      return MakeTruthFrames(model, actor.markers, plan, o);
+    };
+    combos = material("combos", 0.0);
+    performance = material("performance", 0.0);
+    noisy_combos = material("combos", 0.5);
+    noisy_performance = material("performance", 0.5);
   }
   // The frames of BM_RobustSequence / BM_BoundedSequence: 0 combinations,
   // 1 the same with 0.5 mm noise, 2 the performance (a take: the robust
@@ -54,15 +51,6 @@ struct Base {
     const TruthFrames* all[] = {&combos, &noisy_combos, &performance,
                                 &noisy_performance};
     return *all[m];
-  }
-  BundleFrame Bundles(const MatX3d& x, int frame) const {
-    BundleFrame b;
-    b.frame = frame;
-    for (int k = 0; k < data.num_bundles; ++k) {
-      b.bundles[data.bundle_names[k]] =
-          EvaluateSurfacePoint(data.sites[k], actor.neutral.F, x);
-    }
-    return b;
   }
   SynthActorOptions synth;
   FaceModel model;
@@ -92,8 +80,7 @@ struct Variant {
 // Mean over frames and vertices of |solve - truth| (mm), the sequence solved
 // in order (so the temporal preference sees the previous frame).
 double MeanError(const LgiSolver& solver, const TruthFrames& t) {
-  std::vector<JawPose> jaw;
-  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  const std::vector<JawPose> jaw = JawPoses(t.jaw);
   const SolveResult r = solver.SolveSequence(t.bundles, jaw);
   double sum = 0;
   for (size_t f = 0; f < t.positions.size(); ++f) {
@@ -123,7 +110,7 @@ Variant& GetVariant(int quality_milli, int max_edge_mm, int grid_max_cells,
                                          SolveOptions());
   for (int n = 0; n < base.data.num_shapes; ++n) {
     const MatX3d truth = base.actor.ShapePositions(n);
-    FrameSolve f = v.solver->SolveFrame(base.Bundles(truth, n + 1),
+    FrameSolve f = v.solver->SolveFrame(BundlesOnMesh(base.data, base.actor.neutral.F, truth, n + 1),
                                         base.actor.shapes[n].jaw, nullptr);
     const MatX3d x = v.solver->Blend(&f);
     const double err = (x - truth).rowwise().norm().maxCoeff();
@@ -182,8 +169,7 @@ BENCHMARK(BM_SolveFrame)
 template <typename Solve>
 void SolveMaterial(benchmark::State& state, const Solve& solve) {
   const TruthFrames& t = GetBase().Material(state.range(0));
-  std::vector<JawPose> jaw;
-  for (const JawFrame& j : t.jaw) jaw.push_back(j.pose);
+  const std::vector<JawPose> jaw = JawPoses(t.jaw);
   for (auto _ : state) {
     SolveResult r = solve(t.bundles, jaw);
     benchmark::DoNotOptimize(r.meshes.data());

@@ -308,13 +308,7 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
   f.ok = true;
   if (mesh) {
     *mesh = Blend(w, jaw);
-    for (int k = 0; k < K; ++k) {
-      if (!observed[k]) continue;
-      f.bundles[k].residual =
-          (EvaluateSurfacePoint(data_.sites[k], neutral_.F, *mesh) -
-           f.bundles[k].observed)
-              .norm();
-    }
+    SetResiduals(data_.sites, neutral_.F, *mesh, &f);
   }
   if (weights) *weights = w;
   return f;

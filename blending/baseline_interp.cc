@@ -203,13 +203,7 @@ FrameSolve InterpSolver::SolveFrame(const BundleFrame& bundles,
   if (!mesh) return f;
   const MatX3d out = neutral_.V + field;
   *mesh = data_.jaw_rig ? Skin(*data_.jaw_rig, jaw, out) : out;
-  for (int k = 0; k < K; ++k) {
-    if (!observed[k]) continue;
-    f.bundles[k].residual =
-        (EvaluateSurfacePoint(data_.sites[k], neutral_.F, *mesh) -
-         f.bundles[k].observed)
-            .norm();
-  }
+  SetResiduals(data_.sites, neutral_.F, *mesh, &f);
   return f;
 }
 

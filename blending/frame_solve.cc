@@ -54,6 +54,15 @@ std::vector<char> BeginFrame(
   return observed;
 }
 
+void SetResiduals(const std::vector<SurfacePoint>& sites, const MatX3i& F,
+                  const MatX3d& mesh, FrameSolve* frame) {
+  for (size_t k = 0; k < frame->bundles.size(); ++k) {
+    BundleSolve& b = frame->bundles[k];
+    if (!b.Measured()) continue;
+    b.residual = (EvaluateSurfacePoint(sites[k], F, mesh) - b.observed).norm();
+  }
+}
+
 int BundlesNeeded(double min_fraction, int num_bundles) {
   return std::max(
       1, static_cast<int>(std::ceil(min_fraction * num_bundles - 1e-9)));

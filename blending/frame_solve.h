@@ -39,6 +39,12 @@ struct BundleSolve {
   double global_share = 0.0;
   double cost = 0.0;         // neighbour criterion of the choice (mm^2)
   double residual = 0.0;     // |output surface at s_k - observed| (mm)
+
+  // Observed in its frame and solved from its own position (inside its
+  // index or projected onto it), as against filled or unused.
+  bool Measured() const {
+    return status == Status::kInside || status == Status::kProjected;
+  }
 };
 
 struct FrameSolve {
@@ -65,6 +71,11 @@ std::vector<char> BeginFrame(
     const BundleFrame& bundles, const JawPose& jaw,
     const std::unordered_map<std::string, int>& marker_index, int num_bundles,
     FrameSolve* frame);
+
+// Sets each measured bundle's residual: |x(s_k) - observed| on the frame's
+// output `mesh` (V x 3), s_k = sites[k] on the triangles F.
+void SetResiduals(const std::vector<SurfacePoint>& sites, const MatX3i& F,
+                  const MatX3d& mesh, FrameSolve* frame);
 
 // Fewest observed bundles a frame needs: ceil(min_fraction * K), at least 1.
 int BundlesNeeded(double min_fraction, int num_bundles);

@@ -18,11 +18,7 @@ GeodesicVoronoi ComputeGeodesicVoronoi(const FastMarching& marching,
   std::vector<MarchSource> sources;
   for (size_t k = 0; k < sites.size(); ++k) {
     const SurfacePoint& s = sites[k];
-    if (s.face < 0 || s.face >= mesh.NumFaces()) {
-      throw InputError(fmt::format("site {} lies on triangle {}, which the "
-                                   "neutral mesh (F = {}) does not have",
-                                   k, s.face, mesh.NumFaces()));
-    }
+    CheckSiteOnMesh(mesh, s, k);
     const Vec3 x = EvaluateSurfacePoint(s, mesh.F, mesh.V);
     for (int i = 0; i < 3; ++i) {
       const int v = mesh.F(s.face, i);

@@ -154,10 +154,7 @@ bool LgiRbfSolver::Blend(FrameSolve* frame, MatX3d* mesh) const {
     std::vector<char> observed(K, 0);
     for (int k = 0; k < K; ++k) {
       const BundleSolve& b = frame->bundles[k];
-      if (b.status != BundleSolve::Status::kInside &&
-          b.status != BundleSolve::Status::kProjected) {
-        continue;
-      }
+      if (!b.Measured()) continue;
       observed[k] = 1;
       disp[k] = UnskinBundle(data_, k, frame->jaw, b.observed) -
                 EvaluateSurfacePoint(data_.sites[k], neutral_.F, unskinned);
@@ -174,16 +171,7 @@ bool LgiRbfSolver::Blend(FrameSolve* frame, MatX3d* mesh) const {
   }
   *mesh = data_.jaw_rig ? Skin(*data_.jaw_rig, frame->jaw, unskinned)
                         : unskinned;
-  for (int k = 0; k < K; ++k) {
-    BundleSolve& b = frame->bundles[k];
-    if (b.status != BundleSolve::Status::kInside &&
-        b.status != BundleSolve::Status::kProjected) {
-      continue;
-    }
-    b.residual =
-        (EvaluateSurfacePoint(data_.sites[k], neutral_.F, *mesh) - b.observed)
-            .norm();
-  }
+  SetResiduals(data_.sites, neutral_.F, *mesh, frame);
   return true;
 }
 

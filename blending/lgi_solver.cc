@@ -384,11 +384,7 @@ void LgiSolver::BreakTies(const TieGroups& tie, FrameSolve* frame) const {
   // the point stands for gets the vote.
   std::vector<double> explicit_votes(data_.num_shapes + 1, 0.0);
   for (int k = 0; k < K; ++k) {
-    const auto st = f.bundles[k].status;
-    if (tied[k] || (st != BundleSolve::Status::kInside &&
-                    st != BundleSolve::Status::kProjected)) {
-      continue;
-    }
+    if (tied[k] || !f.bundles[k].Measured()) continue;
     if (tie.chosen_representative[k] != kNoRepresentative) {
       if (tie.chosen_representative[k] >= 0) {
         consensus[tie.chosen_representative[k] + 1] += 1.0;
@@ -490,21 +486,14 @@ void LgiSolver::FillMissing(FrameSolve* frame) const {
   // distance between the sites on the neutral.
   std::vector<int> solved;
   for (int k = 0; k < K; ++k) {
-    if (f.bundles[k].status == BundleSolve::Status::kInside ||
-        f.bundles[k].status == BundleSolve::Status::kProjected) {
-      solved.push_back(k);
-    }
+    if (f.bundles[k].Measured()) solved.push_back(k);
   }
   for (int k = 0; k < K; ++k) {
     BundleSolve& out = f.bundles[k];
     if (out.status != BundleSolve::Status::kUnused) continue;
     std::vector<int> from;
     for (int j : nn_.site_neighbours[k]) {
-      const auto st = f.bundles[j].status;
-      if (j != k && (st == BundleSolve::Status::kInside ||
-                     st == BundleSolve::Status::kProjected)) {
-        from.push_back(j);
-      }
+      if (j != k && f.bundles[j].Measured()) from.push_back(j);
     }
     if (from.empty()) {
       // No solved natural neighbour: the nearest solved bundle.
@@ -642,15 +631,7 @@ MatX3d LgiSolver::Blend(FrameSolve* frame) const {
         out.row(v) = x.transpose();
       },
       512);
-  for (int k = 0; k < data_.num_bundles; ++k) {
-    BundleSolve& b = frame->bundles[k];
-    if (b.status == BundleSolve::Status::kInside ||
-        b.status == BundleSolve::Status::kProjected) {
-      b.residual =
-          (EvaluateSurfacePoint(data_.sites[k], neutral_.F, out) - b.observed)
-              .norm();
-    }
-  }
+  SetResiduals(data_.sites, neutral_.F, out, frame);
   return out;
 }
 

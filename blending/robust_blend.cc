@@ -172,7 +172,7 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
 // Steps 4-6, kBlendBatch good frames at a time; bad frames repeat the
 // previous good mesh.
 void RobustSolver::BlendFrames(Sequence* seq) const {
-  const int F = static_cast<int>(seq->work.size()), K = data_.num_bundles;
+  const int F = static_cast<int>(seq->work.size());
   std::vector<Work>& work = seq->work;
   SolveResult& result = seq->result;
   const int width_index = seq->width_index;
@@ -198,15 +198,7 @@ void RobustSolver::BlendFrames(Sequence* seq) const {
       Work& wk = work[f];
       if (wk.ok) {
         result.meshes[f] = std::move(blended[i++]);
-        for (int k = 0; k < K; ++k) {
-          BundleSolve& b = fs.bundles[k];
-          if (wk.observed[k]) {
-            b.residual = (EvaluateSurfacePoint(data_.sites[k], neutral_.F,
-                                               result.meshes[f]) -
-                          b.observed)
-                             .norm();
-          }
-        }
+        SetResiduals(data_.sites, neutral_.F, result.meshes[f], &fs);
       }
       // The frame's working state is done with: released as the meshes
       // come, so a long shot holds its meshes and records, not both.

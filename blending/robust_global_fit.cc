@@ -58,10 +58,7 @@ void RobustSolver::SolveLgiAndGlobal(
       wk.disp.assign(K, Vec3::Zero());
       for (int k = 0; k < K; ++k) {
         const BundleSolve& b = fs.bundles[k];
-        if (b.status != BundleSolve::Status::kInside &&
-            b.status != BundleSolve::Status::kProjected) {
-          continue;
-        }
+        if (!b.Measured()) continue;
         wk.observed[k] = 1;
         wk.disp[k] = UnskinBundle(data_, k, fs.jaw, b.observed) -
                      data_.site_neutral.row(k).transpose();

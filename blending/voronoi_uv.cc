@@ -78,11 +78,7 @@ MatX2d SiteUVs(const TriMesh& mesh, const std::vector<SurfacePoint>& sites) {
   MatX2d uv(sites.size(), 2);
   for (size_t k = 0; k < sites.size(); ++k) {
     const SurfacePoint& s = sites[k];
-    if (s.face < 0 || s.face >= mesh.NumFaces()) {
-      throw InputError(fmt::format("site {} lies on triangle {}, which the "
-                                   "neutral mesh (F = {}) does not have",
-                                   k, s.face, mesh.NumFaces()));
-    }
+    CheckSiteOnMesh(mesh, s, k);
     Vec2 x = Vec2::Zero();
     for (int i = 0; i < 3; ++i) {
       x += s.bary[i] * mesh.UV.row(mesh.FUV(s.face, i)).transpose();

@@ -92,6 +92,28 @@ SurfacePoint PointOnPolygon(const TriMesh& mesh, const ObjPolygons& polygons,
   return point;
 }
 
+// A marker's vertex or face index (`what`: "vertex" or "face", `what_plural`
+// its plural): an integer in 0..count-1, else an input error naming the
+// marker, the line and the neutral mesh.
+int ParseMarkerIndex(std::string_view field, const char* what,
+                     const char* what_plural, int count,
+                     const std::string& marker_name, const fs::path& file,
+                     int line, const fs::path& neutral_file) {
+  long long index = 0;
+  if (!ParseInteger(field, &index)) {
+    ThrowInputError(file, line, "marker '{}': {} '{}' is not an integer",
+                    marker_name, what, field);
+  }
+  if (index < 0 || index >= count) {
+    ThrowInputError(file, line,
+                    "marker '{}' is off the mesh: {} {} is not in 0..{} ({} "
+                    "has {} {}; indices start at 0)",
+                    marker_name, what, index, count - 1,
+                    neutral_file.filename().string(), count, what_plural);
+  }
+  return static_cast<int>(index);
+}
+
 }  // namespace
 
 std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
@@ -159,18 +181,9 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
                       marker.name, vertex_field.empty() ? "neither" : "both");
     }
     if (!vertex_field.empty()) {
-      long long v = 0;
-      if (!ParseInteger(vertex_field, &v)) {
-        ThrowInputError(file, line, "marker '{}': vertex '{}' is not an integer",
-                        marker.name, vertex_field);
-      }
-      if (v < 0 || v >= mesh.NumVertices()) {
-        ThrowInputError(file, line,
-                        "marker '{}' is off the mesh: vertex {} is not in "
-                        "0..{} ({} has {} vertices; indices start at 0)",
-                        marker.name, v, mesh.NumVertices() - 1,
-                        neutral_file.filename().string(), mesh.NumVertices());
-      }
+      const int v = ParseMarkerIndex(vertex_field, "vertex", "vertices",
+                                     mesh.NumVertices(), marker.name, file,
+                                     line, neutral_file);
       if (first_face[v] < 0) {
         ThrowInputError(file, line,
                         "marker '{}' is off the mesh: vertex {} belongs to no "
@@ -183,22 +196,12 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
                         "with a face",
                         marker.name);
       }
-      marker.vertex = static_cast<int>(v);
+      marker.vertex = v;
       marker.point = PointAtVertex(mesh, first_face, marker.vertex);
     } else {
-      long long f = 0;
-      if (!ParseInteger(face_field, &f)) {
-        ThrowInputError(file, line, "marker '{}': face '{}' is not an integer",
-                        marker.name, face_field);
-      }
-      if (f < 0 || f >= polygons.NumPolygons()) {
-        ThrowInputError(file, line,
-                        "marker '{}' is off the mesh: face {} is not in 0..{} "
-                        "({} has {} faces; indices start at 0)",
-                        marker.name, f, polygons.NumPolygons() - 1,
-                        neutral_file.filename().string(),
-                        polygons.NumPolygons());
-      }
+      const int f = ParseMarkerIndex(face_field, "face", "faces",
+                                     polygons.NumPolygons(), marker.name, file,
+                                     line, neutral_file);
       const int corners = polygons.corners[f];
       std::vector<double> weights;
       for (const std::string_view token : SplitWhitespace(weights_field)) {
@@ -232,7 +235,7 @@ std::vector<Marker> ParseMarkersCsv(std::string_view text, const fs::path& file,
                         marker.name, f, sum);
       }
       for (double& w : weights) w = std::max(w, 0.0) / sum;
-      marker.point = PointOnPolygon(mesh, polygons, static_cast<int>(f), weights);
+      marker.point = PointOnPolygon(mesh, polygons, f, weights);
     }
     for (const std::string_view tag : SplitWhitespace(fields[columns[4]])) {
       if (!IsValidName(std::string(tag))) {

@@ -1,5 +1,7 @@
 #include "core/mesh.h"
 
+#include <fmt/format.h>
+
 #include "core/error.h"
 
 namespace hmc {
@@ -12,6 +14,14 @@ Vec3 EvaluateSurfacePoint(const SurfacePoint& point, const MatX3i& F,
     x += point.bary[i] * X.row(F(point.face, i)).transpose();
   }
   return x;
+}
+
+void CheckSiteOnMesh(const TriMesh& mesh, const SurfacePoint& site, size_t k) {
+  if (site.face < 0 || site.face >= mesh.NumFaces()) {
+    throw InputError(fmt::format("site {} lies on triangle {}, which the "
+                                 "neutral mesh (F = {}) does not have",
+                                 k, site.face, mesh.NumFaces()));
+  }
 }
 
 SurfacePoint SurfacePointAtVertex(const MatX3i& F, int v) {

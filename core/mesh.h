@@ -1,6 +1,7 @@
 // Triangle meshes with optional texture coordinates (libigl-style arrays).
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,10 @@ struct SurfacePoint {
 // X: V x 3 positions; F: F x 3 triangles.
 Vec3 EvaluateSurfacePoint(const SurfacePoint& point, const MatX3i& F,
                           const MatX3d& X);
+
+// Throws InputError when site `k` lies on a triangle that `mesh` does not
+// have (the sites were made for another mesh).
+void CheckSiteOnMesh(const TriMesh& mesh, const SurfacePoint& site, size_t k);
 
 // A surface point exactly at vertex `v` (one-hot barycentrics on one of the
 // triangles using it). Requires v to be used by a triangle.

@@ -61,6 +61,7 @@ class BinaryFile {
     if (!in_) ThrowInputError(path, 0, "cannot open for reading");
   }
   int64_t size() const { return size_; }
+  const fs::path& path() const { return path_; }
 
   void Read(char* out, int64_t bytes) {
     in_.read(out, bytes);

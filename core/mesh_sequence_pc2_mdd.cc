@@ -26,6 +26,37 @@
 #include "core/parallel.h"
 
 namespace hmc::sequence_io {
+
+namespace {
+
+// The size in bytes that a point cache's header promises: `header_bytes`
+// then `count` entries (samples or frames, named by `unit`) of `entry_bytes`
+// each. Bounded by division first: a lying header's product would overflow
+// (found by fuzzing, docs/reliability.md).
+int64_t PromisedBytes(const BinaryFile& file, const char* unit, int32_t count,
+                      int32_t num_points, int64_t header_bytes,
+                      int64_t entry_bytes) {
+  if (int64_t{count} > (std::numeric_limits<int64_t>::max() / 2) / entry_bytes) {
+    ThrowInputError(file.path(), 0,
+                    "header promises {} {} x {} points, more than the file's {} bytes",
+                    count, unit, num_points, file.size());
+  }
+  return header_bytes + int64_t{count} * entry_bytes;
+}
+
+// The file's size is not the `expected` one its header promises.
+[[noreturn]] void ThrowSizeMismatch(const BinaryFile& file, const char* unit,
+                                    int32_t count, int32_t num_points,
+                                    int64_t expected) {
+  ThrowInputError(file.path(), 0,
+                  "{}: header promises {} {} x {} points ({} bytes), "
+                  "the file has {} bytes",
+                  file.size() < expected ? "truncated" : "trailing data",
+                  count, unit, num_points, expected, file.size());
+}
+
+}  // namespace
+
 // ---------------------------------------------------------------------------
 // .pc2: Blender / 3ds Max point cache. Layout as Blender's Mesh Cache
 // modifier reads it (MOD_meshcache_pc2.cc): little-endian header
@@ -97,20 +128,11 @@ MeshSequence ReadPc2(const fs::path& path,
     ThrowInputError(path, 0, "start frame {} is not a whole frame number",
                     start);
   }
-  // Bounded by division first: a lying header's product would overflow
-  // (found by fuzzing, docs/reliability.md).
-  if (int64_t{num_samples} > (std::numeric_limits<int64_t>::max() / 2) / (int64_t{num_points} * 12)) {
-    ThrowInputError(path, 0, "header promises {} samples x {} points, more than the file's {} bytes",
-                    num_samples, num_points, file.size());
-  }
   const int64_t expected =
-      kPc2HeaderBytes + int64_t{num_samples} * num_points * 12;
+      PromisedBytes(file, "samples", num_samples, num_points, kPc2HeaderBytes,
+                    int64_t{num_points} * 12);
   if (file.size() != expected) {
-    ThrowInputError(path, 0,
-                    "{}: header promises {} samples x {} points ({} bytes), "
-                    "the file has {} bytes",
-                    file.size() < expected ? "truncated" : "trailing data",
-                    num_samples, num_points, expected, file.size());
+    ThrowSizeMismatch(file, "samples", num_samples, num_points, expected);
   }
   CheckTopologyCount(path, options.topology, num_points);
 
@@ -243,23 +265,14 @@ MeshSequence ReadMdd(const fs::path& path,
                     num_frames, num_points);
   }
   const int64_t frame_bytes = int64_t{num_points} * 12;
-  // Bounded by division first: a lying header's product would overflow
-  // (found by fuzzing, docs/reliability.md).
-  if (int64_t{num_frames} > (std::numeric_limits<int64_t>::max() / 2) / (frame_bytes + 4)) {
-    ThrowInputError(path, 0, "header promises {} frames x {} points, more than the file's {} bytes",
-                    num_frames, num_points, file.size());
-  }
-  const int64_t expected = 8 + int64_t{num_frames} * 4 +
-                           int64_t{num_frames} * frame_bytes;
+  // Each frame: its float32 time, then its points.
+  const int64_t expected = PromisedBytes(file, "frames", num_frames,
+                                         num_points, 8, frame_bytes + 4);
   // Blender's own MDD exporter writes one extra "rest" frame before the
   // frames its header counts; accept it and drop it.
   const bool has_rest_frame = file.size() == expected + frame_bytes;
   if (file.size() != expected && !has_rest_frame) {
-    ThrowInputError(path, 0,
-                    "{}: header promises {} frames x {} points ({} bytes), "
-                    "the file has {} bytes",
-                    file.size() < expected ? "truncated" : "trailing data",
-                    num_frames, num_points, expected, file.size());
+    ThrowSizeMismatch(file, "frames", num_frames, num_points, expected);
   }
   CheckTopologyCount(path, options.topology, num_points);
 

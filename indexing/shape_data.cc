@@ -87,21 +87,34 @@ ShapeData ComputeShapeData(const Actor& actor) {
   return d;
 }
 
+namespace {
+
+// The terms of S_k (shape_data.h) for bundle k under `pose`: T(theta), the
+// interpolated weight w_k and the jaw moment m_k. Needs a jaw rig.
+struct BundleSkinning {
+  Rigid3 t;
+  double w;
+  Vec3 m;
+};
+BundleSkinning SkinningOf(const ShapeData& data, int bundle,
+                          const JawPose& pose) {
+  return {data.jaw_rig->Transform(pose), data.site_jaw_weight[bundle],
+          data.site_jaw_moment.row(bundle).transpose()};
+}
+
+}  // namespace
+
 Vec3 SkinBundle(const ShapeData& data, int bundle, const JawPose& pose,
                 const Vec3& u) {
   if (!data.jaw_rig) return u;
-  const Rigid3 t = data.jaw_rig->Transform(pose);
-  const double w = data.site_jaw_weight[bundle];
-  const Vec3 m = data.site_jaw_moment.row(bundle).transpose();
+  const auto [t, w, m] = SkinningOf(data, bundle, pose);
   return (1.0 - w) * u + w * (t * u) + (t.linear() * m - m);
 }
 
 Vec3 UnskinBundle(const ShapeData& data, int bundle, const JawPose& pose,
                   const Vec3& p) {
   if (!data.jaw_rig) return p;
-  const Rigid3 t = data.jaw_rig->Transform(pose);
-  const double w = data.site_jaw_weight[bundle];
-  const Vec3 m = data.site_jaw_moment.row(bundle).transpose();
+  const auto [t, w, m] = SkinningOf(data, bundle, pose);
   const Mat3 a = (1.0 - w) * Mat3::Identity() + w * t.linear();
   return a.partialPivLu().solve(p - w * t.translation() -
                                 (t.linear() * m - m));

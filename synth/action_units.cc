@@ -333,24 +333,30 @@ UnitCatalog BuildUnitCatalog(const FaceProportions& p, double detail_scale) {
   };
   int au01[2], au02[2], au06[2], au12[2], au45[2];
 
-  for (int i = 0; i < 2; ++i) {
-    const auto& [sd, name] = sides[i];
-    au01[i] = b.Unit("AU01_inner_brow_raiser_" + name, {"brow", "forehead"});
-    b.Term(name + " AU01", Ease(au01[i]),
-           Blobs({{14, bt + 2, 20, 22, Vec3(0, 9, 1)},
-                  {14, bt + 22, 22, 26, Vec3(0, 4, 0)}}, sd));
-    b.Term(name + " AU01 wrinkles", Power(au01[i], 2),
-           detail.ForeheadWrinkles(sd * 12, 34, 0.9));
-  }
-  for (int i = 0; i < 2; ++i) {
-    const auto& [sd, name] = sides[i];
-    au02[i] = b.Unit("AU02_outer_brow_raiser_" + name, {"brow", "forehead"});
-    b.Term(name + " AU02", Ease(au02[i]),
-           Blobs({{42, bt + 1, 22, 20, Vec3(1, 8, 0)},
-                  {40, bt + 20, 24, 24, Vec3(0, 3.5, 0)}}, sd));
-    b.Term(name + " AU02 wrinkles", Beyond(au02[i], 0.3),
-           detail.ForeheadWrinkles(sd * 40, 30, 0.8));
-  }
+  // A brow raiser on each side (AU01 inner, AU02 outer): the brow lifts
+  // (`lift`, given for the left side) and the forehead wrinkles over
+  // ForeheadWrinkles(s, width, amp) as `wrinkling` of the unit grows.
+  auto brow_raiser = [&](const std::string& au, const std::string& unit,
+                         const std::vector<Blob>& lift,
+                         const std::function<Coefficient(int)>& wrinkling,
+                         double wrinkle_s, double wrinkle_width,
+                         double wrinkle_amp, int out[2]) {
+    for (int i = 0; i < 2; ++i) {
+      const auto& [sd, name] = sides[i];
+      out[i] = b.Unit(au + "_" + unit + "_" + name, {"brow", "forehead"});
+      b.Term(name + " " + au, Ease(out[i]), Blobs(lift, sd));
+      b.Term(name + " " + au + " wrinkles", wrinkling(out[i]),
+             detail.ForeheadWrinkles(sd * wrinkle_s, wrinkle_width, wrinkle_amp));
+    }
+  };
+  brow_raiser("AU01", "inner_brow_raiser",
+              {{14, bt + 2, 20, 22, Vec3(0, 9, 1)},
+               {14, bt + 22, 22, 26, Vec3(0, 4, 0)}},
+              [](int k) { return Power(k, 2); }, 12, 34, 0.9, au01);
+  brow_raiser("AU02", "outer_brow_raiser",
+              {{42, bt + 1, 22, 20, Vec3(1, 8, 0)},
+               {40, bt + 20, 24, 24, Vec3(0, 3.5, 0)}},
+              [](int k) { return Beyond(k, 0.3); }, 40, 30, 0.8, au02);
   const int au04 = b.Unit("AU04_brow_lowerer", {"brow", "forehead"});
   b.Term("AU04", Ease(au04),
          Mirrored({{18, bt, 20, 16, Vec3(-3.5, -6, 1.5)},
