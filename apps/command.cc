@@ -222,7 +222,9 @@ void CheckCommandConfig(const std::vector<std::string>& words, const YAML::Node&
   const auto it = Bindings().find(command);
   HMC_CHECK_MSG(it != Bindings().end(), "hmc " + command->get_name() + " binds no options");
   it->second->LoadSection(section, file);
-  const std::string range = it->second->fields().RangeError();
+  // Named as the run config names it: the stage's section, then the key.
+  const std::string range =
+      it->second->fields().RangeError(fmt::format("{}.", fmt::join(words, ".")));
   if (!range.empty()) throw InputError(range);
   if (!it->second->Check()) {
     ThrowInputError(file, section.Mark().line + 1, "invalid {} options (see the message above)",

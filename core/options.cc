@@ -192,7 +192,7 @@ std::string OptionFields::RangeText(const Field& f) {
   return "";
 }
 
-std::string OptionFields::RangeError() const {
+std::string OptionFields::RangeError(const std::string& prefix) const {
   for (const Field& f : fields_) {
     auto in_range = [&](double v) {
       return (f.lo_open ? v > f.lo : v >= f.lo) && (f.hi_open ? v < f.hi : v <= f.hi);
@@ -218,7 +218,7 @@ std::string OptionFields::RangeError() const {
         f.pointer);
     if (!ok) {
       return fmt::format("{}option '{}' = {} must be {}", f.origin.empty() ? "" : f.origin + ": ",
-                         f.name, ValueString(f), RangeText(f));
+                         prefix + f.name, ValueString(f), RangeText(f));
     }
   }
   return "";

@@ -103,7 +103,8 @@ class OptionFields {
 
   // The first field outside its declared range, as "origin: option 'name'
   // = value must be ..." ("" = every field in range).
-  std::string RangeError() const;
+  // `prefix` goes before the option's name ("jaw.": a run config's section).
+  std::string RangeError(const std::string& prefix = "") const;
   // The declared range in words ("in [0, 1]", ">= 0", "one of a, b"; "" = any).
   static std::string RangeText(const Field& field);
 
