@@ -11,7 +11,7 @@
 #include <unordered_map>
 
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
+#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -36,22 +36,36 @@ void SetExpressionBasis(const Actor& actor, MarkerLayout* layout) {
   if (actor.shapes.empty() || actor.markers.empty()) return;
   const MarkerModel model = ComputeMarkerModel(actor);
   const Eigen::MatrixXd& d = model.unskinned_displacement;
-  const Eigen::BDCSVD<Eigen::MatrixXd> svd(d, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Eigen::VectorXd energy = svd.singularValues().array().square();
+  // d = U S V^T from the eigen-decomposition of the smaller Gram matrix
+  // (not Eigen's BDCSVD: under AddressSanitizer our build and Ceres'
+  // library allocate its shared internals differently).
+  const bool by_shapes = d.cols() <= d.rows();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+      by_shapes ? Eigen::MatrixXd(d.transpose() * d) : Eigen::MatrixXd(d * d.transpose()));
+  const Eigen::VectorXd energy = eig.eigenvalues().reverse().cwiseMax(0.0);  // S^2, descending
+  const Eigen::MatrixXd vectors = eig.eigenvectors().rowwise().reverse();     // V or U
   const double total = energy.sum();
   if (!(total > 0)) return;
   int used = 0;
   double explained = 0;
   while (used < std::min<int>(kMaxExpressionComponents, energy.size()) &&
-         explained < 0.999 * total) {
+         explained < 0.999 * total && energy[used] > 0) {
     explained += energy[used++];
   }
-  // d = U S V^T: shape n's coefficient on the scaled column i is
-  // sqrt(N) V(n, i).
+  if (used == 0) return;
+  // Shape n's coefficient on the scaled column i is sqrt(N) V(n, i);
+  // the column is U_i S_i / sqrt(N).
   const double root_n = std::sqrt(static_cast<double>(d.cols()));
-  layout->expression_basis =
-      svd.matrixU().leftCols(used) * (svd.singularValues().head(used) / root_n).asDiagonal();
-  layout->expression_shapes = root_n * svd.matrixV().leftCols(used).transpose();
+  const Eigen::VectorXd s = energy.head(used).cwiseSqrt();
+  if (by_shapes) {
+    const Eigen::MatrixXd v = vectors.leftCols(used);
+    layout->expression_basis = d * v / root_n;
+    layout->expression_shapes = root_n * v.transpose();
+  } else {
+    const Eigen::MatrixXd u = vectors.leftCols(used);
+    layout->expression_basis = u * (s / root_n).asDiagonal();
+    layout->expression_shapes = root_n * s.cwiseInverse().asDiagonal() * u.transpose() * d;
+  }
 }
 
 }  // namespace
