@@ -184,7 +184,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   const Actor& actor = *loaded;
   // The file's rows (a map per frame) live only until the dense sequence
   // is made: a long shot does not hold them through the solve.
-  const DenseSequence input = [&] {
+  DenseSequence input = [&] {
     const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
     if (rows.empty()) {
       ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
@@ -212,6 +212,9 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   MethodSolvers solvers(actor, cmd.options.methods,
                         cmd.no_cache_write ? IndexCacheWrite::kNone
                                            : IndexCacheWrite::kUserCache);
+  solvers.Prepare(cmd.options.method);
+  DropBundlesBeyondReach(solvers.data(), cmd.options.input.outlier_margin_mm,
+                         cmd.bundles_file, &input);
   SolveResult result =
       solvers.Solve(cmd.options.method, input.frames, input.jaw,
                     input.frame_errors);
