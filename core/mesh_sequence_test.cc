@@ -302,6 +302,19 @@ TEST(MeshSequenceTest, UsdaHasTheMetadataDccsNeed) {
         "int[] faceVertexIndices", "defaultPrim = \"face\""}) {
     EXPECT_NE(text.find(expected), std::string::npos) << expected;
   }
+  // Without a timecode none is written; with one, it reads back (and the
+  // formats without a place for it drop it).
+  EXPECT_EQ(text.find("timecode"), std::string::npos);
+  EXPECT_EQ(ReadMeshSequence(dir / "seq.usda").timecode, "");
+  seq.timecode = "01:00:03;02";
+  WriteMeshSequence(dir / "tc.usda", seq);
+  EXPECT_NE(Bytes(dir / "tc.usda").find("string timecode = \"01:00:03;02\""), std::string::npos);
+  const MeshSequence back = ReadMeshSequence(dir / "tc.usda");
+  EXPECT_EQ(back.timecode, seq.timecode);
+  EXPECT_EQ(back.start_frame, 101);
+  WriteMeshSequence(dir / "tc.pc2", seq);
+  EXPECT_EQ(ReadMeshSequence(dir / "tc.pc2").timecode, "");
+  fs::remove_all(dir);
 }
 
 TEST(MeshSequenceTest, FormatFromPath) {

@@ -76,6 +76,7 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
     fmt::format_to(std::back_inserter(text),
                    "#usda 1.0\n"
                    "(\n"
+                   "{}"
                    "    defaultPrim = \"face\"\n"
                    "    doc = \"hmc mesh sequence (mm, head space, +y up)\"\n"
                    "    endTimeCode = {}\n"
@@ -87,6 +88,14 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
                    ")\n\n"
                    "def Mesh \"face\"\n"
                    "{{\n",
+                   // The footage's timecode at the first sample: USD has no
+                   // field of its own for it, so custom layer data.
+                   seq.timecode.empty()
+                       ? std::string()
+                       : fmt::format("    customLayerData = {{\n"
+                                     "        string timecode = \"{}\"\n"
+                                     "    }}\n",
+                                     seq.timecode),
                    last, seq.fps, first, seq.fps);
     // Extent per sample: renderers and usdchecker expect it on a Mesh.
     text += "    float3[] extent.timeSamples = {\n";
@@ -314,6 +323,14 @@ MeshSequence UsdaReader::Read(const MeshSequenceReadOptions& options) {
       fps = Number(key);
       if (!(fps > 0)) Fail(at, "{} must be positive", key);
     }
+  }
+  if (size_t at = FindAttribute("timecode", 0, first_def); at != std::string::npos) {
+    // `string timecode = "HH:MM:SS:FF"` of the custom layer data.
+    pos_ = at;
+    Expect('"', "timecode");
+    const size_t end = text_.find('"', pos_);
+    if (end == std::string::npos || end > first_def) Fail(at, "timecode: no closing quote");
+    seq.timecode = text_.substr(pos_, end - pos_);
   }
   seq.fps = options.fps > 0 ? options.fps : fps > 0 ? fps : 24.0;  // USD's
                                                                    // default

@@ -20,6 +20,7 @@
 #include "core/text.h"
 #include "pipeline/workspace.h"
 #include "tracking/footage_reader.h"
+#include "tracking/video_timecode.h"
 
 namespace hmc {
 
@@ -185,8 +186,13 @@ class Pipeline {
   void AddFootageInputs(StageKey* key) const;
   // `--fps F` for the solve and the exports: the run's `fps` if set, else
   // the footage's frame rate (none for an image sequence, which declares
-  // none: the commands' default).
-  std::vector<std::string> FrameRateFlags() const;
+  // none: the commands' default); and `--timecode TC` for the exports when
+  // cam0's video carries one (docs/formats.md, "Footage").
+  struct FootageTiming {
+    std::vector<std::string> fps;
+    std::vector<std::string> timecode;
+  };
+  FootageTiming FootageTimingFlags() const;
 
   RunInput input_;
   RunOptions options_;
@@ -225,14 +231,24 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
   }
 }
 
-std::vector<std::string> Pipeline::FrameRateFlags() const {
-  if (options_.fps > 0) return {"--fps", fmt::format("{}", options_.fps)};
+Pipeline::FootageTiming Pipeline::FootageTimingFlags() const {
+  FootageTiming timing;
   const HelmetRig rig = ReadCalibration(input_.calibration);
   std::vector<std::string> names;
   for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  const double fps = FootageReader(input_.shot, names, options_.footage).fps();
-  if (!(fps > 0)) return {};  // an image sequence: the commands' default
-  return {"--fps", fmt::format("{}", fps)};
+  const FootageReader reader(input_.shot, names, options_.footage);
+  const double fps = options_.fps > 0 ? options_.fps : reader.fps();
+  // An image sequence: the commands' default rate.
+  if (fps > 0) timing.fps = {"--fps", fmt::format("{}", fps)};
+  if (fs::is_regular_file(reader.source(0))) {
+    const std::string timecode = ReadVideoTimecode(reader.source(0));
+    if (!timecode.empty()) {
+      spdlog::info("run: {} starts at timecode {}: the mesh caches that keep one carry it",
+                   reader.source(0).string(), timecode);
+      timing.timecode = {"--timecode", timecode};
+    }
+  }
+  return timing;
 }
 
 nlohmann::json Pipeline::RunCommand(const std::string& stage, std::vector<std::string> args,
@@ -359,15 +375,16 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
       // The footage's frame rate, so that the exports play at the shot's
       // speed (a 60 fps helmet camera's mesh is not written at 30).
-      const std::vector<std::string> fps = FrameRateFlags();
-      args.insert(args.end(), fps.begin(), fps.end());
+      const FootageTiming timing = FootageTimingFlags();
+      args.insert(args.end(), timing.fps.begin(), timing.fps.end());
       nlohmann::json report = RunCommand("solve", args, dir);
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
                                             target.string(), "--topology",
                                             (dir / "neutral.obj").string()};
-        convert.insert(convert.end(), fps.begin(), fps.end());
+        convert.insert(convert.end(), timing.fps.begin(), timing.fps.end());
+        convert.insert(convert.end(), timing.timecode.begin(), timing.timecode.end());
         RunCommand("solve", convert, dir);
       }
       return report;
