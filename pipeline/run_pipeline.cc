@@ -239,7 +239,12 @@ Pipeline::FootageTiming Pipeline::FootageTimingFlags() const {
   const FootageReader reader(input_.shot, names, options_.footage);
   const double fps = options_.fps > 0 ? options_.fps : reader.fps();
   // An image sequence: the commands' default rate.
-  if (fps > 0) timing.fps = {"--fps", fmt::format("{}", fps)};
+  if (fps > 0) {
+    timing.fps = {"--fps", fmt::format("{}", fps)};
+  } else {
+    spdlog::info("run: the footage (an image sequence) declares no frame rate: the mesh "
+                 "caches play at 30 frames/s (set run.fps, --fps, for the camera's own)");
+  }
   if (fs::is_regular_file(reader.source(0))) {
     const std::string timecode = ReadVideoTimecode(reader.source(0));
     if (!timecode.empty()) {
@@ -383,7 +388,11 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
                                             target.string(), "--topology",
                                             (dir / "neutral.obj").string()};
-        convert.insert(convert.end(), timing.fps.begin(), timing.fps.end());
+        // An image sequence's caches at the commands' default rate, said
+        // once here rather than as a warning of every export.
+        const std::vector<std::string> fps =
+            timing.fps.empty() ? std::vector<std::string>{"--fps", "30"} : timing.fps;
+        convert.insert(convert.end(), fps.begin(), fps.end());
         convert.insert(convert.end(), timing.timecode.begin(), timing.timecode.end());
         RunCommand("solve", convert, dir);
       }
