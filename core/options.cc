@@ -194,6 +194,25 @@ std::string OptionFields::RangeText(const Field& f) {
 
 std::string OptionFields::RangeError(const std::string& prefix) const {
   for (const Field& f : fields_) {
+    // Every number is finite, whatever its range (a config or a flag
+    // cannot give another; code can).
+    const bool finite = std::visit(
+        [](auto* pointer) {
+          using T = std::remove_pointer_t<decltype(pointer)>;
+          if constexpr (std::is_same_v<T, double>) {
+            return std::isfinite(*pointer);
+          } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+            return std::all_of(pointer->begin(), pointer->end(),
+                               [](double v) { return std::isfinite(v); });
+          } else {
+            return true;
+          }
+        },
+        f.pointer);
+    if (!finite) {
+      return fmt::format("{}option '{}' = {} must be finite", f.origin.empty() ? "" : f.origin + ": ",
+                         prefix + f.name, ValueString(f));
+    }
     auto in_range = [&](double v) {
       return (f.lo_open ? v > f.lo : v >= f.lo) && (f.hi_open ? v < f.hi : v <= f.hi);
     };
