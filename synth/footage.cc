@@ -21,73 +21,55 @@ namespace hmc {
 
 void FootageRenderOptions::Register(OptionFields* fields) {
   fields->SetGroup("render");
-  fields->Add("dot_radius", &dot_radius, "painted dot radius on the skin (mm)");
-  fields->Add("dot_albedo", &dot_albedo, "reflectance of the dot paint");
-  fields->Add("skin_albedo", &skin_albedo, "mean skin reflectance");
+  fields->Add("dot_radius", &dot_radius, "painted dot radius on the skin (mm)")
+      .Above(0.1).Below(20);
+  fields->Add("dot_albedo", &dot_albedo, "reflectance of the dot paint").In(0, 1);
+  fields->Add("skin_albedo", &skin_albedo, "mean skin reflectance").In(0, 1);
   fields->Add("albedo_variation", &albedo_variation,
-              "relative amplitude of the skin's albedo variation");
-  fields->Add("tag_white", &tag_white, "reflectance of the tags' white");
-  fields->Add("tag_black", &tag_black, "reflectance of the tags' black");
-  fields->Add("background", &background, "radiance where nothing is hit");
-  fields->Add("ambient", &ambient, "ambient light (fraction of full exposure)");
+              "relative amplitude of the skin's albedo variation")
+      .AtLeast(0).Below(1);
+  fields->Add("tag_white", &tag_white, "reflectance of the tags' white").In(0, 1);
+  fields->Add("tag_black", &tag_black, "reflectance of the tags' black").In(0, 1);
+  fields->Add("background", &background, "radiance where nothing is hit").In(0, 1);
+  fields->Add("ambient", &ambient, "ambient light (fraction of full exposure)").In(0, 2);
   fields->Add("light_power", &light_power,
-              "each head light's irradiance at 170 mm, head-on (fraction of full exposure)");
-  fields->Add("light_offset", &light_offset, "head light offset beside each camera (mm)");
-  fields->Add("exposure", &exposure, "gain on the radiance before the sensor (1 = as lit)");
+              "each head light's irradiance at 170 mm, head-on (fraction of full exposure)")
+      .In(0, 10);
+  fields->Add("light_offset", &light_offset, "head light offset beside each camera (mm)")
+      .AtLeast(0).Below(200);
+  fields->Add("exposure", &exposure, "gain on the radiance before the sensor (1 = as lit)")
+      .Above(0).AtMost(10);
   fields->Add("exposure_drift", &exposure_drift,
               "relative change of the exposure from the first frame to the last (linear; -0.2 = "
-              "20% darker at the end)");
+              "20% darker at the end)")
+      .Above(-1).AtMost(10);
   fields->Add("specular", &specular,
-              "skin's specular (Blinn-Phong) reflectance (0 = matte; the dots' paint stays matte)");
-  fields->Add("shininess", &shininess, "Blinn-Phong exponent of the skin's highlights");
-  fields->Add("vignetting", &vignetting, "darkening at the image corner (0 = off)");
-  fields->Add("read_noise", &read_noise, "std of the sensor read noise (8-bit levels; 0 = off)");
-  fields->Add("shot_noise", &shot_noise, "shot-noise variance per level of signal (0 = off)");
+              "skin's specular (Blinn-Phong) reflectance (0 = matte; the dots' paint stays matte)")
+      .In(0, 1);
+  fields->Add("shininess", &shininess, "Blinn-Phong exponent of the skin's highlights").In(1, 1000);
+  fields->Add("vignetting", &vignetting, "darkening at the image corner (0 = off)").In(0, 1);
+  fields->Add("read_noise", &read_noise, "std of the sensor read noise (8-bit levels; 0 = off)")
+      .AtLeast(0).Below(50);
+  fields->Add("shot_noise", &shot_noise, "shot-noise variance per level of signal (0 = off)")
+      .AtLeast(0).Below(10);
   fields->Add("motion_blur_samples", &motion_blur_samples,
-              "sub-frame samples over the shutter (1 = off)");
-  fields->Add("shutter", &shutter, "exposure as a fraction of the frame interval");
-  fields->Add("defocus_px", &defocus_px, "Gaussian defocus blur sigma (px; 0 = off)");
-  fields->Add("max_edge_error_px", &max_edge_error_px, "fisheye subdivision tolerance (px)");
+              "sub-frame samples over the shutter (1 = off)")
+      .In(1, 64);
+  fields->Add("shutter", &shutter, "exposure as a fraction of the frame interval")
+      .Above(0).AtMost(1);
+  fields->Add("defocus_px", &defocus_px, "Gaussian defocus blur sigma (px; 0 = off)")
+      .AtLeast(0).Below(20);
+  fields->Add("max_edge_error_px", &max_edge_error_px, "fisheye subdivision tolerance (px)")
+      .Above(0.001).AtMost(2);
   fields->Add("transfer", &transfer,
-              "8-bit encoding: linear | srgb (the sRGB curve, as most cameras write PNG)");
+              "8-bit encoding: linear | srgb (the sRGB curve, as most cameras write PNG)")
+      .OneOf({"linear", "srgb"});
   fields->SetGroup("");
 }
 
 bool FootageRenderOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("render options: {}", message);
-    ok = false;
-  };
-  auto unit = [](double x) { return x >= 0 && x <= 1; };
-  if (!(dot_radius > 0.1 && dot_radius < 20)) fail("dot_radius must be in (0.1, 20) mm");
-  if (!unit(dot_albedo) || !unit(skin_albedo) || !unit(tag_white) || !unit(tag_black) ||
-      !unit(background)) {
-    fail("reflectances and background must be in [0, 1]");
-  }
-  if (!(albedo_variation >= 0 && albedo_variation < 1)) fail("albedo_variation must be in [0, 1)");
-  if (!(ambient >= 0 && ambient <= 2) || !(light_power >= 0 && light_power <= 10)) {
-    fail("ambient must be in [0, 2] and light_power in [0, 10]");
-  }
-  if (!(light_offset >= 0 && light_offset < 200)) fail("light_offset must be in [0, 200) mm");
-  if (!(exposure > 0 && exposure <= 10)) fail("exposure must be in (0, 10]");
-  if (!(exposure_drift > -1 && exposure_drift <= 10)) fail("exposure_drift must be in (-1, 10]");
-  if (!unit(specular)) fail("specular must be in [0, 1]");
-  if (!(shininess >= 1 && shininess <= 1000)) fail("shininess must be in [1, 1000]");
-  if (!unit(vignetting)) fail("vignetting must be in [0, 1]");
-  if (!(read_noise >= 0 && read_noise < 50) || !(shot_noise >= 0 && shot_noise < 10)) {
-    fail("read_noise must be in [0, 50) and shot_noise in [0, 10)");
-  }
-  if (motion_blur_samples < 1 || motion_blur_samples > 64) {
-    fail("motion_blur_samples must be in [1, 64]");
-  }
-  if (!(shutter > 0 && shutter <= 1)) fail("shutter must be in (0, 1]");
-  if (!(defocus_px >= 0 && defocus_px < 20)) fail("defocus_px must be in [0, 20)");
-  if (transfer != "linear" && transfer != "srgb") fail("transfer must be linear or srgb");
-  if (!(max_edge_error_px > 0.001 && max_edge_error_px <= 2)) {
-    fail("max_edge_error_px must be in (0.001, 2]");
-  }
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 void FootageRenderOptions::SetClean() {
