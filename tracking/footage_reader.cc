@@ -22,7 +22,8 @@ void FootageOptions::Register(OptionFields* fields) {
   fields->Add("cam0", &cam0, "cam0 video or image folder (\"\" = SHOT/cam0.<ext> or SHOT/cam0/)");
   fields->Add("cam1", &cam1, "cam1 video or image folder (\"\" = SHOT/cam1.<ext> or SHOT/cam1/)");
   fields->Add("frames", &frames, "frame range A:B, inclusive; A: or :B open (\"\" = all)");
-  fields->Add("offset1", &offset1, "cam1 frame = cam0 frame + offset1 (frames)");
+  fields->Add("offset1", &offset1, "cam1 frame = cam0 frame + offset1 (frames)")
+      .In(-100000, 100000);
 }
 
 void FootageOptions::RegisterTransfer(OptionFields* fields) {
@@ -30,27 +31,22 @@ void FootageOptions::RegisterTransfer(OptionFields* fields) {
   fields->Add("transfer", &transfer,
               "encoding of the footage's values: srgb | linear | auto (as each camera's files "
               "say: PNG sRGB/iCCP/gAMA, JPEG sRGB, an .mp4/.mov's colr box; linear where not "
-              "stated)");
+              "stated)")
+      .OneOf({"srgb", "linear", "auto"});
   fields->SetGroup("");
 }
 
 bool FootageOptions::Check() const {
-  bool ok = true;
-  if (transfer != "srgb" && transfer != "linear" && transfer != "auto") {
-    spdlog::error("footage options: transfer must be srgb, linear or auto, got '{}'", transfer);
-    ok = false;
-  }
+  CHECK_OPTION_LIMITS();
+  // transfer is declared by RegisterTransfer, which CHECK_OPTION_LIMITS does not see.
+  CHECK_OPTION(transfer == "srgb" || transfer == "linear" || transfer == "auto");
   try {
     ParseFrameRange(frames, "frames");
   } catch (const InputError& e) {
     spdlog::error("footage options: {}", e.what());
-    ok = false;
+    return false;
   }
-  if (offset1 < -100000 || offset1 > 100000) {
-    spdlog::error("footage options: offset1 must be in [-100000, 100000], got {}", offset1);
-    ok = false;
-  }
-  return ok;
+  return true;
 }
 
 FrameRange ParseFrameRange(const std::string& text, const std::string& origin) {
