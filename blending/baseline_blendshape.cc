@@ -20,21 +20,20 @@ void BlendshapeOptions::Register(OptionFields* fields) {
   fields->Add("bounded", &bounded,
               "hard bounds 0 <= w <= 1 instead of the soft penalty");
   fields->Add("penalty", &penalty,
-              "soft [0,1] penalty weight (mm^2 per unit weight^2)");
+              "soft [0,1] penalty weight (mm^2 per unit weight^2)")
+      .AtLeast(0);
   fields->Add("tikhonov", &tikhonov,
-              "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)");
+              "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)")
+      .Above(0);
   fields->Add("max_iterations", &max_iterations,
               "solver iterations per frame (Newton steps of the soft fit, "
-              "active-set updates of the bounded one)");
+              "active-set updates of the bounded one)")
+      .AtLeast(1);
   fields->SetGroup("");
 }
 
 bool BlendshapeOptions::Check() const {
-  CHECK_OPTION_GE(penalty, 0.0);
-  CHECK_OPTION(std::isfinite(penalty));
-  CHECK_OPTION_GT(tikhonov, 0.0);
-  CHECK_OPTION(std::isfinite(tikhonov));
-  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
   return true;
 }

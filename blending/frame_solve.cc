@@ -94,31 +94,32 @@ void SequenceInputOptions::Register(OptionFields* fields) {
   fields->SetGroup("input");
   fields->Add("max_frame_gap", &max_frame_gap,
               "most missing frames in a row between two frames of "
-              "bundles.csv; a larger gap is an input error (frames)");
+              "bundles.csv; a larger gap is an input error (frames)")
+      .AtLeast(0);
   fields->Add("outlier_margin_mm", &outlier_margin_mm,
               "a bundle farther than this outside the box of every position "
               "the actor's dataset gives its marker (the jaw taken out) is "
-              "an outlier: flagged, dropped from its frame (mm)");
+              "an outlier: flagged, dropped from its frame (mm)")
+      .In(0, 1e6);
   fields->Add("jaw_open_deg", &jaw_open_deg,
               "[min, max] of a jaw pose's open_deg; outside: the frame is "
-              "flagged bad (degrees)");
+              "flagged bad (degrees)")
+      .In(-180, 180);
   fields->Add("jaw_lateral_max_deg", &jaw_lateral_max_deg,
               "largest |lateral_deg| of a jaw pose; beyond: the frame is "
-              "flagged bad (degrees)");
+              "flagged bad (degrees)")
+      .In(0, 180);
   fields->Add("jaw_protrude_max_mm", &jaw_protrude_max_mm,
               "largest |protrude_mm| of a jaw pose; beyond: the frame is "
-              "flagged bad (mm)");
+              "flagged bad (mm)")
+      .In(0, 1000);
   fields->SetGroup("");
 }
 
 bool SequenceInputOptions::Check() const {
-  CHECK_OPTION_GE(max_frame_gap, 0);
-  CHECK_OPTION_IN(outlier_margin_mm, 0.0, 1e6);
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION_EQ(jaw_open_deg.size(), 2u);
-  CHECK_OPTION_IN(jaw_open_deg[0], -180.0, 180.0);
-  CHECK_OPTION_IN(jaw_open_deg[1], jaw_open_deg[0], 180.0);
-  CHECK_OPTION_IN(jaw_lateral_max_deg, 0.0, 180.0);
-  CHECK_OPTION_IN(jaw_protrude_max_mm, 0.0, 1000.0);
+  CHECK_OPTION_LE(jaw_open_deg[0], jaw_open_deg[1]);
   return true;
 }
 

@@ -27,7 +27,8 @@ void RobustOptions::Register(OptionFields* fields) {
               "and correction only)");
   fields->Add("margin", &margin,
               "lgi must beat the global fit's neighbourhood cost by this many "
-              "noise variances per bundle");
+              "noise variances per bundle")
+      .AtLeast(0);
   fields->Add("ridge", &ridge,
               "one ridge for every shape of the global fit (mm^2 per unit of "
               "weight^2); negative: one per shape, from the sequence's frames "
@@ -39,22 +40,27 @@ void RobustOptions::Register(OptionFields* fields) {
               "chosen per sequence by C_p");
   fields->Add("temporal_window", &temporal_window,
               "frames of the centred moving average of each bundle's answer "
-              "(step 3b, temporal coherence; <= 1: off)");
+              "(step 3b, temporal coherence; <= 1: off)")
+      .In(0, 61);
   fields->Add("temporal_tolerance", &temporal_tolerance,
               "the moving average replaces a bundle's answer where its "
               "neighbourhood cost exceeds the answer's by at most this many "
-              "noise variances per bundle");
+              "noise variances per bundle")
+      .AtLeast(0);
   fields->Add("take", &take,
               "whether the frames are a take, a continuous recording (steps "
               "3b and 3c run only on one): auto (the markers' lag-1 "
-              "correlation is at least 0.5), yes, no");
+              "correlation is at least 0.5), yes, no")
+      .OneOf({"auto", "yes", "no"});
   fields->Add("correction_window", &correction_window,
               "step 5 on a take: frames of the centred moving average of "
-              "the residuals the correction is fitted to (<= 1: off)");
+              "the residuals the correction is fitted to (<= 1: off)")
+      .In(0, 61);
   fields->Add("detail_window", &detail_window,
               "step 3c on a take: frames of the centred moving average of "
               "each bundle's local detail, its answer less the global one "
-              "(<= 1: off)");
+              "(<= 1: off)")
+      .In(0, 61);
   fields->Add("interpolate", &interpolate,
               "after the correction (part of it: off with correct), "
               "interpolate what is left at each bundle beyond the noise's "
@@ -63,38 +69,7 @@ void RobustOptions::Register(OptionFields* fields) {
 }
 
 bool RobustOptions::Check() const {
-  if (!std::isfinite(noise_mm)) {
-    spdlog::error("robust options: noise_mm must be finite");
-    return false;
-  }
-  if (!(margin >= 0) || !std::isfinite(margin)) {
-    spdlog::error("robust options: margin must be >= 0 and finite");
-    return false;
-  }
-  if (temporal_window < 0 || temporal_window > 61) {
-    spdlog::error("robust options: temporal_window must be in [0, 61]");
-    return false;
-  }
-  if (take != "auto" && take != "yes" && take != "no") {
-    spdlog::error("robust options: take must be auto, yes or no (not '{}')", take);
-    return false;
-  }
-  if (correction_window < 0 || correction_window > 61) {
-    spdlog::error("robust options: correction_window must be in [0, 61]");
-    return false;
-  }
-  if (detail_window < 0 || detail_window > 61) {
-    spdlog::error("robust options: detail_window must be in [0, 61]");
-    return false;
-  }
-  if (!(temporal_tolerance >= 0) || !std::isfinite(temporal_tolerance)) {
-    spdlog::error("robust options: temporal_tolerance must be >= 0 and finite");
-    return false;
-  }
-  if (!std::isfinite(ridge)) {
-    spdlog::error("robust options: ridge must be finite");
-    return false;
-  }
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

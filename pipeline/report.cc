@@ -35,23 +35,18 @@ namespace hmc {
 namespace fs = std::filesystem;
 
 void ReportOptions::Register(OptionFields* fields) {
-  fields->Add("contact_frames", &contact_frames, "footage frames on the contact sheet (0 = none)");
-  fields->Add("contact_scale", &contact_scale, "footage image scale on the contact sheet");
-  fields->Add("mesh_px", &mesh_px, "height of the mesh renders (px)");
-  fields->Add("error_max_mm", &error_max_mm, "top of the error colour scale (mm)");
+  fields->Add("contact_frames", &contact_frames, "footage frames on the contact sheet (0 = none)")
+      .In(0, 24);
+  fields->Add("contact_scale", &contact_scale, "footage image scale on the contact sheet")
+      .Above(0.05).AtMost(1);
+  fields->Add("mesh_px", &mesh_px, "height of the mesh renders (px)").In(64, 2048);
+  fields->Add("error_max_mm", &error_max_mm, "top of the error colour scale (mm)")
+      .Above(0).Below(100);
 }
 
 bool ReportOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& m) {
-    spdlog::error("report options: {}", m);
-    ok = false;
-  };
-  if (contact_frames < 0 || contact_frames > 24) fail("contact_frames must be in [0, 24]");
-  if (!(contact_scale > 0.05 && contact_scale <= 1)) fail("contact_scale must be in (0.05, 1]");
-  if (mesh_px < 64 || mesh_px > 2048) fail("mesh_px must be in [64, 2048]");
-  if (!(error_max_mm > 0 && error_max_mm < 100)) fail("error_max_mm must be in (0, 100)");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 std::string ReportSummary::BriefReport() const {

@@ -31,45 +31,40 @@ void SynthShotOptions::Register(OptionFields* fields) {
   fields->Add("video", &video,
               "ffv1 (lossless .mkv per camera) | h264 (lossy .mp4 per camera, as a camera records) | "
               "png (a folder per camera) | none (ground truth "
-              "only: no images, dots_2d.csv or contact sheet)");
+              "only: no images, dots_2d.csv or contact sheet)")
+      .OneOf({"ffv1", "h264", "png", "none"});
   fields->Add("bundle_noise_mm", &bundle_noise_mm,
               "> 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per "
-              "coordinate (mm)");
-  fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)");
+              "coordinate (mm)")
+      .In(0, 50);
+  fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)")
+      .In(0, 32);
   fields->Add("contact_dots", &contact_dots, "overlay the ground-truth dots on the contact sheet");
-  fields->Add("contact_scale", &contact_scale, "contact sheet image scale");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  fields->Add("contact_scale", &contact_scale, "contact sheet image scale").Above(0.05).AtMost(1);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").In(0, 4096);
   rig.Register(fields);
   render.Register(fields);
   vary.Register(fields);
   fields->Add("nominal_mm", &nominal_mm,
               "write calibration.yaml with each camera centre moved by this (mm; the truth goes "
-              "to calibration_true.yaml)");
-  fields->Add("nominal_deg", &nominal_deg, "... and each camera rotated by this (deg)");
-  fields->Add("nominal_focal_pct", &nominal_focal_pct, "... and its focal length scaled by 1 +- this (%)");
+              "to calibration_true.yaml)")
+      .In(0, 50);
+  fields->Add("nominal_deg", &nominal_deg, "... and each camera rotated by this (deg)").In(0, 20);
+  fields->Add("nominal_focal_pct", &nominal_focal_pct, "... and its focal length scaled by 1 +- this (%)")
+      .In(0, 20);
   fields->Add("knock_frame", &knock_frame,
               "from this frame on, knock_camera is moved (0 = no knock; the moved rig goes to "
-              "calibration_knocked.yaml)");
+              "calibration_knocked.yaml)")
+      .AtLeast(0);
   fields->Add("knock_camera", &knock_camera, "the camera knocked");
-  fields->Add("knock_mm", &knock_mm, "the knock's translation (mm)");
-  fields->Add("knock_deg", &knock_deg, "the knock's rotation (deg)");
+  fields->Add("knock_mm", &knock_mm, "the knock's translation (mm)").In(0, 50);
+  fields->Add("knock_deg", &knock_deg, "the knock's rotation (deg)").In(0, 20);
 }
 
 bool SynthShotOptions::Check() const {
   if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check()) return false;
   if (!VaryRender(render, vary, static_cast<uint64_t>(performance.seed)).Check()) return false;
-  CHECK_OPTION(video == "ffv1" || video == "h264" || video == "png" || video == "none");
-  CHECK_OPTION_IN(bundle_noise_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(contact_frames, 0, 32);
-  CHECK_OPTION_GT(contact_scale, 0.05);
-  CHECK_OPTION_LE(contact_scale, 1.0);
-  CHECK_OPTION_IN(threads, 0, 4096);
-  CHECK_OPTION_IN(nominal_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(nominal_deg, 0.0, 20.0);
-  CHECK_OPTION_IN(nominal_focal_pct, 0.0, 20.0);
-  CHECK_OPTION_GE(knock_frame, 0);
-  CHECK_OPTION_IN(knock_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(knock_deg, 0.0, 20.0);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

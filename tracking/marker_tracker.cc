@@ -18,57 +18,48 @@ namespace hmc {
 
 void MarkerTrackerOptions::Register(OptionFields* fields) {
   fields->Add("pair_gap_mm", &pair_gap_mm,
-              "stereo pairing: largest ray closest-approach distance (mm)");
-  fields->Add("max_offset_mm", &max_offset_mm, "head offset from rest the labelling must cover (mm)");
+              "stereo pairing: largest ray closest-approach distance (mm)")
+      .Above(0);
+  fields->Add("max_offset_mm", &max_offset_mm, "head offset from rest the labelling must cover (mm)")
+      .AtLeast(0);
   fields->Add("max_offset_deg", &max_offset_deg,
-              "head rotation from rest the labelling must cover (deg)");
+              "head rotation from rest the labelling must cover (deg)")
+      .AtLeast(0).Below(60);
   fields->Add("triple_tolerance_mm", &triple_tolerance_mm,
-              "RANSAC: pairwise distance agreement of a triple (mm)");
-  fields->Add("inlier_mm", &inlier_mm, "registration inlier distance (mm)");
-  fields->Add("ransac_samples", &ransac_samples, "RANSAC triples of points tried");
+              "RANSAC: pairwise distance agreement of a triple (mm)")
+      .Above(0);
+  fields->Add("inlier_mm", &inlier_mm, "registration inlier distance (mm)").Above(0);
+  fields->Add("ransac_samples", &ransac_samples, "RANSAC triples of points tried").AtLeast(1);
   fields->Add("name_gate", &name_gate,
-              "naming gate (fraction of the distance to the nearest other dot)");
+              "naming gate (fraction of the distance to the nearest other dot)")
+      .Above(0).Below(0.5);
   fields->Add("track_gate", &track_gate,
-              "tracking gate (fraction of the distance to the nearest other dot)");
+              "tracking gate (fraction of the distance to the nearest other dot)")
+      .Above(0).Below(0.5);
   fields->Add("reacquire_gate", &reacquire_gate,
-              "re-acquisition gate (fraction of the nearest-dot distance)");
-  fields->Add("max_gate_px", &max_gate_px, "cap of every gate (px)");
+              "re-acquisition gate (fraction of the nearest-dot distance)")
+      .Above(0).Below(0.5);
+  fields->Add("max_gate_px", &max_gate_px, "cap of every gate (px)").Above(0);
   fields->Add("ambiguity_ratio", &ambiguity_ratio,
-              "second-nearest detection at least this much farther");
+              "second-nearest detection at least this much farther")
+      .AtLeast(1);
   fields->Add("epipolar_gap_mm", &epipolar_gap_mm,
-              "stereo swap check: largest ray gap of a named pair (mm)");
-  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection");
-  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
+              "stereo swap check: largest ray gap of a named pair (mm)")
+      .Above(0);
+  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection")
+      .AtLeast(1);
+  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)").In(1, 10);
   fields->Add("jaw_reach_deg", &jaw_reach_deg,
-              "largest change of the jaw opening between two frames that is followed (deg)");
+              "largest change of the jaw opening between two frames that is followed (deg)")
+      .In(1, 45);
   fields->Add("flow_check_px", &flow_check_px,
-              "largest forward-backward flow disagreement (px)");
+              "largest forward-backward flow disagreement (px)")
+      .Above(0);
 }
 
 bool MarkerTrackerOptions::Check() const {
-  bool ok = true;
-  auto need = [&](bool condition, const char* what) {
-    if (!condition) {
-      spdlog::error("track options: {}", what);
-      ok = false;
-    }
-  };
-  need(pair_gap_mm > 0, "pair_gap_mm must be > 0");
-  need(max_offset_mm >= 0 && max_offset_deg >= 0 && max_offset_deg < 60,
-       "max_offset_mm >= 0 and max_offset_deg in [0, 60) required");
-  need(triple_tolerance_mm > 0 && inlier_mm > 0, "triple_tolerance_mm and inlier_mm must be > 0");
-  need(ransac_samples >= 1, "ransac_samples must be >= 1");
-  need(name_gate > 0 && name_gate < 0.5, "name_gate must be in (0, 0.5)");
-  need(track_gate > 0 && track_gate < 0.5, "track_gate must be in (0, 0.5)");
-  need(reacquire_gate > 0 && reacquire_gate < 0.5, "reacquire_gate must be in (0, 0.5)");
-  need(max_gate_px > 0, "max_gate_px must be > 0");
-  need(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
-  need(epipolar_gap_mm > 0, "epipolar_gap_mm must be > 0");
-  need(neighbours >= 1, "neighbours must be >= 1");
-  need(flow_window >= 1 && flow_window <= 10, "flow_window must be in [1, 10]");
-  need(flow_check_px > 0, "flow_check_px must be > 0");
-  need(jaw_reach_deg >= 1 && jaw_reach_deg <= 45, "jaw_reach_deg must be in [1, 45]");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 namespace {

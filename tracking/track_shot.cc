@@ -28,8 +28,9 @@ void TrackOptions::Register(OptionFields* fields) {
   footage.Register(fields);
   footage.RegisterTransfer(fields);
   fields->Add("reference_frame", &reference_frame,
-              "frame where the actor is near neutral and names are given");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "frame where the actor is near neutral and names are given")
+      .AtLeast(1);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
   fields->SetGroup("detect");
   detect.Register(fields);
   fields->SetGroup("track");
@@ -38,16 +39,8 @@ void TrackOptions::Register(OptionFields* fields) {
 }
 
 bool TrackOptions::Check() const {
-  bool ok = footage.Check() && detect.Check() && tracker.Check();
-  if (reference_frame < 1) {
-    spdlog::error("track options: reference_frame must be >= 1");
-    ok = false;
-  }
-  if (threads < 0) {
-    spdlog::error("track options: threads must be >= 0");
-    ok = false;
-  }
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return footage.Check() && detect.Check() && tracker.Check();
 }
 
 std::string TrackSummary::BriefReport() const {
