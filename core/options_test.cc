@@ -173,12 +173,32 @@ TEST(OptionsTest, NonFiniteNumbersFailTheRangeCheck) {
     no_range.Register(&fields);
     EXPECT_NE(fields.RangeError().find("option 'levels' = 0,"), std::string::npos)
         << fields.RangeError();
+    EXPECT_NE(fields.RangeError().find(": item "), std::string::npos) << fields.RangeError();
     EXPECT_NE(fields.RangeError().find("must be finite"), std::string::npos)
         << fields.RangeError();
   }
   ExampleOptions finite;
   finite.levels = {-1e300, 1e300};
   EXPECT_TRUE(finite.Check());
+}
+
+// A list out of range names its first item that is (issue 52: `--methods
+// lgi,rbf` said which method was unknown before the check was declared).
+TEST(OptionsTest, AListNamesItsFirstItemOutOfRange) {
+  std::vector<std::string> kinds = {"a", "c", "d"};
+  std::vector<double> levels = {0.5, 2, 3};
+  OptionFields fields;
+  fields.Add("kinds", &kinds, "kinds").OneOf({"a", "b"});
+  fields.Add("levels", &levels, "levels").In(0, 1);
+  EXPECT_NE(fields.RangeError().find("option 'kinds' = a,c,d: item 'c' must be one of a, b"),
+            std::string::npos)
+      << fields.RangeError();
+  kinds = {"b", "a"};
+  EXPECT_NE(fields.RangeError().find("option 'levels' = 0.5,2,3: item 2 must be in [0, 1]"),
+            std::string::npos)
+      << fields.RangeError();
+  levels = {1, 0};
+  EXPECT_TRUE(fields.RangeError().empty()) << fields.RangeError();
 }
 
 }  // namespace

@@ -17,14 +17,14 @@ namespace hmc {
 void EvalOptions::Register(OptionFields* fields) {
   metrics.Register(fields);
   fields->Add("uv_resolution", &uv_resolution,
-              "side of the UV-space error maps (px)");
+              "side of the UV-space error maps (px)")
+      .In(8, 8192);
   picture.Register(fields);
 }
 
 bool EvalOptions::Check() const {
-  if (!metrics.Check()) return false;
-  CHECK_OPTION_IN(uv_resolution, 8, 8192);
-  return picture.Check();
+  CHECK_OPTION_LIMITS();
+  return metrics.Check() && picture.Check();
 }
 
 FrameMatch MatchFrames(const MeshSequence& a, const MeshSequence& b) {
