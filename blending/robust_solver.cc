@@ -61,6 +61,12 @@ void RobustOptions::Register(OptionFields* fields) {
               "each bundle's local detail, its answer less the global one "
               "(<= 1: off)")
       .In(0, 61);
+  fields->Add("global_shapes", &global_shapes,
+              "the global fit is over at most this many dataset shapes, in "
+              "the dataset's order those that add a direction at the "
+              "bundles, so that its cost does not grow with the dataset "
+              "(0: every shape)")
+      .AtLeast(0);
   fields->Add("interpolate", &interpolate,
               "after the correction (part of it: off with correct), "
               "interpolate what is left at each bundle beyond the noise's "
@@ -96,12 +102,12 @@ std::string RobustReport::BriefReport(bool interpolate,
                                       int good_frames) const {
   return fmt::format(
       "marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
-      "mm for the shape prior), global ridge per shape {:.3g} (median; "
-      "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
+      "mm for the shape prior), global fit over {} shapes, ridge per shape "
+      "{:.3g} (median; smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
       "choice, {} the global fit, {} the temporal average; {} (lag-1 "
       "correlation {:.2f}){}",
       noise_mm, noise_estimated ? "estimated" : "given",
-      selection_noise_mm, prior_noise_mm, ridge,
+      selection_noise_mm, prior_noise_mm, global_shapes, ridge,
       ridge_min,
       lambda > 0
           ? fmt::format("width {:.1f} mm, smoothing {:.3g} ({} of {} frames "
@@ -131,6 +137,7 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
               {"noise_estimated", noise_estimated ? 1.0 : 0.0},
               {"selection_noise_mm", selection_noise_mm},
               {"prior_noise_mm", prior_noise_mm},
+              {"global_shapes", static_cast<double>(global_shapes)},
               {"ridge_median", ridge},
               {"ridge_min", ridge_min},
               {"correction_width_mm", width_mm},
@@ -156,6 +163,7 @@ SolveResult RobustSolver::SolveSequence(
   HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
   HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
   Sequence seq(smoothers_);
+  seq.report.global_shapes = global_.num_shapes();
   SolveLgiAndGlobal(frames, jaw, frame_errors, &seq);  // step 1
   EstimateNoise(&seq);                                 // step 2
   FitShapePrior(&seq);                                 // step 2b
