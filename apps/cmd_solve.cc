@@ -20,6 +20,13 @@
 // after the solve"); the calibration, when given, checks the rays' camera
 // names. The diagnostics give each ray's distance before and after.
 //
+// `--weights weights.csv`, `--curves curves.csv`, `--unit_rig FILE.usda`:
+// the actor's units fitted to each solved mesh (blending/unit_curves.h;
+// docs/method.md, "Animation curves"), written as a per-frame table, as
+// per-channel curves and as a USD BlendShape rig with time-sampled weights
+// (docs/formats.md, "Unit weights and curves"); the diagnostics give how
+// closely the rig driven by them reproduces the solved meshes.
+//
 // Frames run from the first to the last frame number of bundles.csv (a gap
 // of more than input.max_frame_gap missing frames is an input error); a
 // frame without rows, with too few bundles, without a jaw pose (when --jaw
@@ -43,6 +50,7 @@
 #include "blending/ray_constraints.h"
 #include "blending/solve_index_cache.h"
 #include "blending/solve_method.h"
+#include "blending/unit_curves.h"
 #include "core/actor.h"
 #include "core/actor_cache.h"
 #include "core/calibration.h"
@@ -83,6 +91,9 @@ struct SolveCommand {
   std::string rays_file;
   std::string calibration_file;
   std::string poses_file;
+  std::string weights_file;
+  std::string curves_file;
+  std::string unit_rig_file;
   bool no_cache_write = false;
   double fps = 30.0;
   SolveCommandOptions options;
@@ -134,6 +145,12 @@ nlohmann::json FrameDiagnostics(const Actor& actor, const FrameSolve& f,
           {"unknown_markers", f.unknown_markers},
           {"outlier_markers", outliers},
           {"bundles", bundles}};
+}
+
+std::vector<MatX3d> ShapeDisplacements(const Actor& actor) {
+  std::vector<MatX3d> out;
+  for (const Shape& shape : actor.shapes) out.push_back(shape.displacement);
+  return out;
 }
 
 // rays.csv's rays (helmet space) as constraints in head space: x_head =
@@ -197,10 +214,16 @@ struct RayDiagnostics {
   std::vector<nlohmann::json> frames;
 };
 
+// The unit fit's header entry and per-frame residuals (null without one).
+struct UnitDiagnostics {
+  nlohmann::json summary;
+  std::vector<double> frame_mean_mm;
+};
+
 void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
                       const std::string& method, const LgiModel* model,
                       const SolveResult& result, const DenseSequence& input,
-                      const RayDiagnostics& rays) {
+                      const RayDiagnostics& rays, const UnitDiagnostics& units) {
   const SolveSummary& s = result.summary;
   nlohmann::json index = nullptr;
   if (model) {
@@ -223,7 +246,8 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
                                   {"outlier_bundles", input.num_outliers},
                                   {"unknown_marker_rows", input.unknown_rows},
                                   {"max_projection_mm", s.max_projection}}},
-                                {"rays", rays.summary}};
+                                {"rays", rays.summary},
+                                {"unit_fit", units.summary}};
   WriteFileAtomic(path, [&](std::ostream& out) {
     out << "{\n";
     for (const auto& [key, value] : head.items()) {
@@ -233,6 +257,7 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
     for (size_t i = 0; i < result.frames.size(); ++i) {
       nlohmann::json frame = FrameDiagnostics(actor, result.frames[i], input.outliers[i]);
       if (!rays.frames.empty()) frame["rays"] = rays.frames[i];
+      if (!units.frame_mean_mm.empty()) frame["unit_fit_mean_mm"] = units.frame_mean_mm[i];
       out << (i ? ",\n  " : "\n  ") << frame.dump();
     }
     out << "\n ]\n}\n";
@@ -253,7 +278,10 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   PrepareOutputPaths({{cmd.out, "--out", format == SequenceFormat::kObjFolder},
                       SideFile(parent / "options_used.yaml", "solve"),
                       {cmd.diagnostics_file, "--diagnostics"},
-                      {cmd.topology_file, "--topology"}},
+                      {cmd.topology_file, "--topology"},
+                      {cmd.weights_file, "--weights"},
+                      {cmd.curves_file, "--curves"},
+                      {cmd.unit_rig_file, "--unit_rig"}},
                      {{cmd.actor_dir, "--actor"},
                       {cmd.bundles_file, "--bundles"},
                       {cmd.jaw_file, "--jaw"},
@@ -326,7 +354,11 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
     }
     const std::vector<RayResidual> residuals =
         ApplyRayConstraints(rays, model.data.sites, actor.neutral.F, model.nn, observed,
-                            frame_ok, cmd.options.rays, &result.meshes);
+                            frame_ok, cmd.options.rays, &result.meshes,
+                            cmd.options.rays.depth == "dataset"
+                                ? SiteMotionCovariances(ShapeDisplacements(actor), model.data.sites,
+                                                        actor.neutral.F)
+                                : std::vector<Mat3>());
     const RayConstraintSummary summary = SummarizeRays(residuals);
     spdlog::info("solve: rays: {}", summary.BriefReport());
     ray_diagnostics.summary = {{"rays", summary.rays},
@@ -350,6 +382,24 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
     }
   }
 
+  UnitDiagnostics unit_diagnostics;
+  if (!cmd.weights_file.empty() || !cmd.curves_file.empty() || !cmd.unit_rig_file.empty()) {
+    const UnitRig rig = UnitRigFromActor(actor);
+    const UnitFit fit = FitUnitWeights(rig, actor, result.meshes, input.jaw);
+    const UnitAnimation animation =
+        MakeUnitAnimation(rig, actor, fit, input.jaw, input.first_frame, cmd.fps);
+    if (!cmd.weights_file.empty()) WriteUnitWeightsCsv(cmd.weights_file, animation);
+    if (!cmd.curves_file.empty()) WriteUnitCurvesCsv(cmd.curves_file, animation);
+    if (!cmd.unit_rig_file.empty()) WriteUnitRigUsda(cmd.unit_rig_file, rig, actor, animation, input.jaw);
+    spdlog::info("solve: {} units fitted to the solved meshes: the rig driven by the weights is "
+                 "{:.4f} mm from them (mean; worst frame {:.4f})",
+                 rig.names.size(), fit.mean_mm_all, fit.max_frame_mean_mm);
+    unit_diagnostics.summary = {{"units", rig.names.size()},
+                                {"mean_mm", fit.mean_mm_all},
+                                {"max_frame_mean_mm", fit.max_frame_mean_mm}};
+    unit_diagnostics.frame_mean_mm = fit.mean_mm;
+  }
+
   MeshSequence seq;
   seq.frames = std::move(result.meshes);
   seq.start_frame = input.first_frame;
@@ -360,7 +410,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   if (!cmd.topology_file.empty()) WriteObj(cmd.topology_file, actor.neutral);
   if (!cmd.diagnostics_file.empty()) {
     WriteDiagnostics(cmd.diagnostics_file, actor, cmd.options.method, solvers.lgi_model(), result,
-                     input, ray_diagnostics);
+                     input, ray_diagnostics, unit_diagnostics);
   }
   spdlog::info("solve ({}): {}", cmd.options.method,
                result.summary.BriefReport());
@@ -401,6 +451,13 @@ HMC_COMMAND(Solve, "", "solve",
   app->add_option("--calibration", cmd->calibration_file,
                   "The rig's calibration: checks the rays' camera names")
       ->check(CLI::ExistingFile);
+  app->add_option("--weights", cmd->weights_file,
+                  "weights.csv: per frame, the weights of the actor's units fitted to the solved "
+                  "mesh (and the jaw pose; docs/formats.md, \"Unit weights and curves\")");
+  app->add_option("--curves", cmd->curves_file,
+                  "curves.csv: the same weights as one curve per channel (channel,frame,time_s,value)");
+  app->add_option("--unit_rig", cmd->unit_rig_file,
+                  "A .usda: the actor's units as a USD BlendShape rig, the weights time-sampled");
   app->add_option("--fps", cmd->fps, "Frame rate written to the output")
       ->check(CLI::PositiveNumber);
   app->add_flag("--no_cache_write", cmd->no_cache_write,

@@ -19,11 +19,25 @@ void RayConstraintOptions::Register(OptionFields* fields) {
   fields->Add("max_mm", &max_mm,
               "a ray farther than this from the solved marker's surface point is not applied "
               "(a mislabelled dot; mm)");
+  fields->Add("depth", &depth,
+              "the move along the ray: solve (none: the depth stays the solve's) or dataset "
+              "(what the dataset's motion at the marker predicts from the move across it)");
+  fields->Add("tolerance_mm", &tolerance_mm,
+              "the rays' own error: a surface point is moved to within this of its ray, not onto "
+              "it (0: onto the ray; mm)");
 }
 
 bool RayConstraintOptions::Check() const {
   if (!(max_mm > 0) || !std::isfinite(max_mm)) {
     spdlog::error("rays options: max_mm must be > 0 and finite");
+    return false;
+  }
+  if (depth != "solve" && depth != "dataset") {
+    spdlog::error("rays options: depth must be solve or dataset, not '{}'", depth);
+    return false;
+  }
+  if (!(tolerance_mm >= 0) || !std::isfinite(tolerance_mm)) {
+    spdlog::error("rays options: tolerance_mm must be >= 0 and finite");
     return false;
   }
   return true;
@@ -58,13 +72,48 @@ Vec3 NearestPointOnRay(const Vec3& o, const Vec3& d, const Vec3& p, double* t) {
   return o + *t * d;
 }
 
+constexpr double kDepthRidge = 0.3;  // blending/ray_constraints.h
+
+// The move along the unit ray direction d that the motion covariance S
+// predicts from the move `across` (perpendicular to d): with u1, u2 a basis
+// of the plane across d, E[t | a] = S_da S_aa^-1 a, a = (u1.across,
+// u2.across). Zero when S is singular across the ray.
+Vec3 DepthFromMotion(const Mat3& S, const Vec3& d, const Vec3& across) {
+  const Vec3 u1 = d.unitOrthogonal();
+  const Vec3 u2 = d.cross(u1);
+  Eigen::Matrix2d saa;
+  // The ridge: the move across is itself uncertain (the solve's error is
+  // not all the dataset's motion); it keeps the prediction bounded where
+  // the motion is almost along the ray.
+  const double ridge = kDepthRidge * S.trace() / 3;
+  saa << u1.dot(S * u1) + ridge, u1.dot(S * u2), u2.dot(S * u1), u2.dot(S * u2) + ridge;
+  const Eigen::RowVector2d sda(d.dot(S * u1), d.dot(S * u2));
+  const Eigen::Vector2d a(u1.dot(across), u2.dot(across));
+  const double det = saa.determinant();
+  if (!(det > 1e-12 * saa.trace() * saa.trace())) return Vec3::Zero();
+  return (sda * saa.inverse() * a)(0) * d;
+}
+
 }  // namespace
+
+std::vector<Mat3> SiteMotionCovariances(const std::vector<MatX3d>& displacements,
+                                        const std::vector<SurfacePoint>& sites, const MatX3i& F) {
+  std::vector<Mat3> cov(sites.size(), Mat3::Zero());
+  for (const MatX3d& b : displacements) {
+    for (size_t k = 0; k < sites.size(); ++k) {
+      const Vec3 c = EvaluateSurfacePoint(sites[k], F, b);
+      cov[k] += c * c.transpose();
+    }
+  }
+  return cov;
+}
 
 std::vector<RayResidual> ApplyRayConstraints(
     const std::vector<RayConstraint>& rays, const std::vector<SurfacePoint>& sites,
     const MatX3i& F, const NaturalNeighbourWeights& nn,
     const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
-    const RayConstraintOptions& options, std::vector<MatX3d>* meshes) {
+    const RayConstraintOptions& options, std::vector<MatX3d>* meshes,
+    const std::vector<Mat3>& site_motion) {
   const int num_sites = static_cast<int>(sites.size());
   if (nn.weights.cols() != num_sites) {
     throw InputError(fmt::format("ray constraints: {} sites but natural-neighbour weights over {}",
@@ -113,7 +162,12 @@ std::vector<RayResidual> ApplyRayConstraints(
       } else {
         marker_taken[ray.marker] = static_cast<int>(active.size());
         active.push_back(r);
-        target_move.push_back(q - p);
+        // Soft threshold: what is within the ray's own error stays.
+        const double keep = std::min(options.tolerance_mm, res.before_mm);
+        Vec3 move = res.before_mm > 0 ? Vec3((q - p) * (1 - keep / res.before_mm))
+                                      : Vec3::Zero();
+        if (options.depth == "dataset") move += DepthFromMotion(site_motion.at(ray.marker), ray.direction, move);
+        target_move.push_back(move);
       }
     }
     if (active.empty()) continue;

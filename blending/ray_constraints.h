@@ -10,11 +10,19 @@
 //   X'(v) = X(v) + sum_{j in R} lambda_j(v) delta_j,
 //
 // R the frame's constrained markers. delta is chosen so that each marker's
-// surface point p_i = x(s_i) moves to q_i, the point of its ray nearest to
-// it: the 3 x |R| system sum_j A_ij delta_j = q_i - p_i with A_ij =
+// surface point p_i = x(s_i) moves by m_i onto its ray: the |R| x |R|
+// system sum_j A_ij delta_j = m_i (three right-hand sides) with A_ij =
 // lambda_j at s_i (barycentric over s_i's triangle; about the identity).
-// The move is perpendicular to the ray: the depth along it stays the
-// solve's. The field is the robust solve's own interpolation of what is
+// The ray gives no depth. m_i is the move across the ray to q_i, the ray's
+// point nearest to p_i: with rays.depth "solve" (the default) the depth
+// stays the solve's. With "dataset" m_i also moves along the ray by what
+// the dataset's motion at the marker predicts from the move across it
+// (measured: better on one actor seed, worse on another; docs/method.md):
+// with S = sum_n c_n c_n^T over the shapes' displacements c_n at the site,
+// the conditional mean of the along-ray component given the across
+// components under N(0, S), with a ridge of 0.3 tr(S) / 3 on the across
+// block (the solve's error is not all the dataset's motion). The field is
+// the robust solve's own interpolation of what is
 // left at the bundles (blending/robust_solver.h, step 5), so it is confined
 // to the natural-neighbour region of the constrained markers, is zero at
 // the other markers' sites that sit on vertices, and leaves the dataset's
@@ -38,6 +46,16 @@ namespace hmc {
 struct RayConstraintOptions {
   double max_mm = 5.0;  // a ray farther than this from the solved surface
                         // point is not applied (a mislabelled dot)
+  // How the move along the ray is chosen: "solve" leaves the depth the
+  // solve's (the move is perpendicular to the ray); "dataset" adds the
+  // depth the dataset's motion at the marker predicts from the
+  // perpendicular move (the conditional mean under the zero-mean Gaussian
+  // whose covariance is sum_n c_n c_n^T over the shapes' displacements c_n
+  // at the marker's site).
+  std::string depth = "solve";
+  double tolerance_mm = 0.0;  // the ray's own error: a surface point is
+                              // moved to within this of its ray, not onto
+                              // it (soft threshold; 0: onto the ray)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -89,11 +107,21 @@ struct RayConstraintSummary {
 // solved (both may be empty: all false / all true). Returns one residual per
 // constraint, in the order given. Throws InputError on a marker index out
 // of range.
+// site_motion: with depth "dataset", per site the 3 x 3 covariance of the
+// dataset's motion there (SiteMotionCovariances), else ignored (may be
+// empty).
 std::vector<RayResidual> ApplyRayConstraints(
     const std::vector<RayConstraint>& rays, const std::vector<SurfacePoint>& sites,
     const MatX3i& F, const NaturalNeighbourWeights& nn,
     const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
-    const RayConstraintOptions& options, std::vector<MatX3d>* meshes);
+    const RayConstraintOptions& options, std::vector<MatX3d>* meshes,
+    const std::vector<Mat3>& site_motion = {});
+
+// sum_n c_{k,n} c_{k,n}^T per site k, c_{k,n} the displacement of shape n
+// (V x 3 each, as the actor holds it: the jaw's motion included) at site
+// k.
+std::vector<Mat3> SiteMotionCovariances(const std::vector<MatX3d>& displacements,
+                                        const std::vector<SurfacePoint>& sites, const MatX3i& F);
 
 RayConstraintSummary SummarizeRays(const std::vector<RayResidual>& residuals);
 
