@@ -384,6 +384,15 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
                                        (dir / "diagnostics.json").string(), "--topology",
                                        (dir / "neutral.obj").string()};
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      // The actor's units fitted to the solved meshes (docs/method.md,
+      // "Animation curves"): the animators' controls; the USD rig with the
+      // meshes' USD export.
+      args.insert(args.end(), {"--weights", (dir / "weights.csv").string(), "--curves",
+                               (dir / "curves.csv").string()});
+      const std::vector<std::string> formats = ExportFormats(options_.export_formats);
+      if (std::find(formats.begin(), formats.end(), "usda") != formats.end()) {
+        args.insert(args.end(), {"--unit_rig", (dir / "unit_rig.usda").string()});
+      }
       if (rays) {
         args.insert(args.end(), {"--rays", Out("triangulate", "rays.csv").string(),
                                  "--head_from_helmet",
@@ -396,6 +405,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       args.insert(args.end(), fps.begin(), fps.end());
       nlohmann::json report = RunCommand("solve", args, dir);
       if (rays) report["rays"] = DiagnosticsHeaderField(dir / "diagnostics.json", "rays");
+      report["unit_fit"] = DiagnosticsHeaderField(dir / "diagnostics.json", "unit_fit");
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
