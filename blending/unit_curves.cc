@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/parallel.h"
+#include "core/usd_text.h"
 
 namespace hmc {
 namespace {
@@ -39,9 +40,7 @@ std::string UsdIdentifier(const std::string& name) {
   return id;
 }
 
-void AppendFloat(std::string* text, double x) {
-  fmt::format_to(std::back_inserter(*text), "{}", static_cast<float>(x));
-}
+void AppendFloat(std::string* text, double x) { AppendUsdFloat(text, x); }
 
 void AppendVec3(std::string* text, const Vec3& v) {
   *text += '(';
@@ -273,37 +272,14 @@ void WriteUnitRigUsda(const std::filesystem::path& path, const UnitRig& rig, con
       "    def Mesh \"face\" (\n"
       "        prepend apiSchemas = [\"SkelBindingAPI\"]\n"
       "    )\n    {\n";
-  text += "        int[] faceVertexCounts = [";
-  for (int t = 0; t < mesh.NumFaces(); ++t) text += t ? ", 3" : "3";
-  text += "]\n        int[] faceVertexIndices = [";
-  for (int t = 0; t < mesh.NumFaces(); ++t) {
-    fmt::format_to(std::back_inserter(text), "{}{}, {}, {}", t ? ", " : "", mesh.F(t, 0),
-                   mesh.F(t, 1), mesh.F(t, 2));
-  }
-  text += "]\n        uniform token orientation = \"rightHanded\"\n";
+  AppendUsdFaces(&text, mesh, "        ");
   text += "        point3f[] points = [";
   for (int v = 0; v < mesh.NumVertices(); ++v) {
     text += v ? ", " : "";
     AppendVec3(&text, mesh.V.row(v).transpose());
   }
   text += "]\n";
-  if (mesh.HasUVs()) {
-    text += "        texCoord2f[] primvars:st = [";
-    for (int i = 0; i < mesh.UV.rows(); ++i) {
-      text += i ? ", (" : "(";
-      AppendFloat(&text, mesh.UV(i, 0));
-      text += ", ";
-      AppendFloat(&text, mesh.UV(i, 1));
-      text += ')';
-    }
-    text += "] (\n            interpolation = \"faceVarying\"\n        )\n";
-    text += "        int[] primvars:st:indices = [";
-    for (int t = 0; t < mesh.NumFaces(); ++t) {
-      fmt::format_to(std::back_inserter(text), "{}{}, {}, {}", t ? ", " : "", mesh.FUV(t, 0),
-                     mesh.FUV(t, 1), mesh.FUV(t, 2));
-    }
-    text += "]\n";
-  }
+  AppendUsdUvs(&text, mesh, "        ");
   text += "        uniform token subdivisionScheme = \"none\"\n";
   text += "        rel skel:skeleton = </rig/skeleton>\n";
   fmt::format_to(std::back_inserter(text), "        matrix4d primvars:skel:geomBindTransform = {}\n",

@@ -1,0 +1,27 @@
+// Pieces of USD ASCII that more than one writer emits: a triangle mesh's
+// faces and UVs (core/mesh_sequence_usda.cc's mesh sequences,
+// blending/unit_curves.h's blend-shape rig; docs/formats.md).
+#pragma once
+
+#include <string>
+
+#include "core/mesh.h"
+
+namespace hmc {
+
+// USD's float-valued types hold float32: x rounded to float32, written as
+// the shortest text that reads back as that float (at most 9 digits), or
+// with fewer digits if `precision` (< 9) asks for less.
+void AppendUsdFloat(std::string* text, double x, int precision = 9);
+
+// `int[] faceVertexCounts`, `int[] faceVertexIndices` and
+// `uniform token orientation = "rightHanded"`, each line starting with
+// `indent`.
+void AppendUsdFaces(std::string* text, const TriMesh& mesh, const std::string& indent);
+
+// `texCoord2f[] primvars:st` (faceVarying) and `int[] primvars:st:indices`;
+// nothing for a mesh without UVs.
+void AppendUsdUvs(std::string* text, const TriMesh& mesh, const std::string& indent,
+                  int precision = 9);
+
+}  // namespace hmc
