@@ -194,21 +194,11 @@ void WriteUnitRigUsda(const std::filesystem::path& path, const UnitRig& rig, con
   const int last = first + static_cast<int>(animation.values.size()) - 1;
   const bool has_jaw = actor.jaw_rig.has_value();
   std::string text;
-  fmt::format_to(std::back_inserter(text),
-                 "#usda 1.0\n"
-                 "(\n"
-                 "    defaultPrim = \"rig\"\n"
-                 "    doc = \"hmc unit animation: the actor's units as blend shapes, their weights "
-                 "time-sampled (mm, head space, +y up; docs/formats.md)\"\n"
-                 "    endTimeCode = {}\n"
-                 "    framesPerSecond = {}\n"
-                 "    metersPerUnit = 0.001\n"
-                 "    startTimeCode = {}\n"
-                 "    timeCodesPerSecond = {}\n"
-                 "    upAxis = \"Y\"\n"
-                 ")\n\n"
-                 "def SkelRoot \"rig\"\n{{\n",
-                 last, animation.fps, first, animation.fps);
+  AppendUsdStageHeader(&text, "rig",
+                       "hmc unit animation: the actor's units as blend shapes, their weights "
+                       "time-sampled (mm, head space, +y up; docs/formats.md)",
+                       first, last, animation.fps);
+  text += "def SkelRoot \"rig\"\n{\n";
   // Tokens: the unit names as written in weights.csv.
   std::string shape_tokens = "[";
   for (int u = 0; u < U; ++u) shape_tokens += fmt::format("{}\"{}\"", u ? ", " : "", rig.names[u]);

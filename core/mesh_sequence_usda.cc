@@ -62,21 +62,9 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
       out.write(text.data(), static_cast<std::streamsize>(text.size()));
       text.clear();
     };
-    fmt::format_to(std::back_inserter(text),
-                   "#usda 1.0\n"
-                   "(\n"
-                   "    defaultPrim = \"face\"\n"
-                   "    doc = \"hmc mesh sequence (mm, head space, +y up)\"\n"
-                   "    endTimeCode = {}\n"
-                   "    framesPerSecond = {}\n"
-                   "    metersPerUnit = 0.001\n"
-                   "    startTimeCode = {}\n"
-                   "    timeCodesPerSecond = {}\n"
-                   "    upAxis = \"Y\"\n"
-                   ")\n\n"
-                   "def Mesh \"face\"\n"
-                   "{{\n",
-                   last, seq.fps, first, seq.fps);
+    AppendUsdStageHeader(&text, "face", "hmc mesh sequence (mm, head space, +y up)", first, last,
+                         seq.fps);
+    text += "def Mesh \"face\"\n{\n";
     // Extent per sample: renderers and usdchecker expect it on a Mesh.
     text += "    float3[] extent.timeSamples = {\n";
     for (size_t f = 0; f < seq.frames.size(); ++f) {

@@ -15,6 +15,23 @@ void AppendUsdFloat(std::string* text, double x, int precision) {
   }
 }
 
+void AppendUsdStageHeader(std::string* text, const std::string& default_prim,
+                          const std::string& doc, int first, int last, double fps) {
+  fmt::format_to(std::back_inserter(*text),
+                 "#usda 1.0\n"
+                 "(\n"
+                 "    defaultPrim = \"{}\"\n"
+                 "    doc = \"{}\"\n"
+                 "    endTimeCode = {}\n"
+                 "    framesPerSecond = {}\n"
+                 "    metersPerUnit = 0.001\n"
+                 "    startTimeCode = {}\n"
+                 "    timeCodesPerSecond = {}\n"
+                 "    upAxis = \"Y\"\n"
+                 ")\n\n",
+                 default_prim, doc, last, fps, first, fps);
+}
+
 void AppendUsdFaces(std::string* text, const TriMesh& mesh, const std::string& indent) {
   *text += indent + "int[] faceVertexCounts = [";
   for (int t = 0; t < mesh.NumFaces(); ++t) *text += t ? ", 3" : "3";

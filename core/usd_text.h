@@ -14,6 +14,12 @@ namespace hmc {
 // with fewer digits if `precision` (< 9) asks for less.
 void AppendUsdFloat(std::string* text, double x, int precision = 9);
 
+// The stage's header: "#usda 1.0" and its metadata (defaultPrim, doc,
+// time codes first..last at fps, metersPerUnit 0.001: mm, upAxis Y), then
+// a blank line.
+void AppendUsdStageHeader(std::string* text, const std::string& default_prim,
+                          const std::string& doc, int first, int last, double fps);
+
 // `int[] faceVertexCounts`, `int[] faceVertexIndices` and
 // `uniform token orientation = "rightHanded"`, each line starting with
 // `indent`.
