@@ -205,9 +205,12 @@ TEST_F(RunTest, EachStageAloneGivesTheSameBytes) {
                    (work / "stabilize" / "bundles.csv").string(), actor,
                    (alone / "jaw.csv").string()),
        {{work / "jaw" / "jaw.csv", alone / "jaw.csv"}}},
-      {fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}'", actor,
-                   (work / "stabilize" / "bundles.csv").string(),
-                   (work / "jaw" / "jaw.csv").string(), (alone / "mesh.pc2").string()),
+      {fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' --rays '{}' "
+                   "--head_from_helmet '{}' --calibration '{}'",
+                   actor, (work / "stabilize" / "bundles.csv").string(),
+                   (work / "jaw" / "jaw.csv").string(), (alone / "mesh.pc2").string(),
+                   (work / "triangulate" / "rays.csv").string(),
+                   (work / "stabilize" / "head_from_helmet.csv").string(), cal),
        {{work / "solve" / "mesh.pc2", alone / "mesh.pc2"}}},
   };
   for (const auto& [args, files] : stages) {
