@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -117,6 +118,23 @@ std::string RunSummary::BriefReport() const {
 }
 
 namespace {
+
+// One field of the header of `hmc solve --diagnostics` (docs/formats.md,
+// "Solve diagnostics": one header field per line before the frames), read
+// without parsing the frames, which a long shot makes large. null when the
+// field is not there.
+nlohmann::json DiagnosticsHeaderField(const fs::path& path, const std::string& name) {
+  std::ifstream in(path);
+  const std::string prefix = " \"" + name + "\": ";
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(" \"frames\": ", 0) == 0) break;
+    if (line.rfind(prefix, 0) != 0) continue;
+    std::string value = line.substr(prefix.size());
+    if (!value.empty() && value.back() == ',') value.pop_back();
+    return nlohmann::json::parse(value, nullptr, /*allow_exceptions=*/false);
+  }
+  return nullptr;
+}
 
 // The run config: a mapping from stage name to that stage's options (the
 // keys of configs/<stage>.yaml). Each section is handed to the stage's
@@ -368,21 +386,47 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
   } else if (stage == "solve") {
     key.AddInput("bundles", Out("stabilize", "bundles.csv"));
     if (actor_has_jaw_) key.AddInput("jaw", Out("jaw", "jaw.csv"));
+    // Markers seen by one camera constrain the solved mesh (docs/method.md,
+    // "Constraints after the solve"), placed in head space by the head
+    // poses.
+    const bool rays = fs::is_regular_file(Out("triangulate", "rays.csv"));
+    if (rays) {
+      key.AddInput("rays", Out("triangulate", "rays.csv"));
+      key.AddInput("head_from_helmet", Out("stabilize", "head_from_helmet.csv"));
+      key.AddInput("calibration", calibration);
+    }
     key.AddInputText("actor", actor_hash_);
     key.AddInputText("export", options_.export_formats);
     key.AddInputText("fps", fmt::format("{}", options_.fps));
-    plan.run = [this](const fs::path& dir) {
+    plan.run = [this, rays, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"solve", "--actor", input_.actor, "--bundles",
                                        Out("stabilize", "bundles.csv").string(), "--out",
                                        (dir / "mesh.pc2").string(), "--diagnostics",
                                        (dir / "diagnostics.json").string(), "--topology",
                                        (dir / "neutral.obj").string()};
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      // The actor's units fitted to the solved meshes (docs/method.md,
+      // "Animation curves"): the animators' controls; the USD rig with the
+      // meshes' USD export.
+      args.insert(args.end(), {"--weights", (dir / "weights.csv").string(), "--curves",
+                               (dir / "curves.csv").string()});
+      const std::vector<std::string> formats = ExportFormats(options_.export_formats);
+      if (std::find(formats.begin(), formats.end(), "usda") != formats.end()) {
+        args.insert(args.end(), {"--unit_rig", (dir / "unit_rig.usda").string()});
+      }
+      if (rays) {
+        args.insert(args.end(), {"--rays", Out("triangulate", "rays.csv").string(),
+                                 "--head_from_helmet",
+                                 Out("stabilize", "head_from_helmet.csv").string(),
+                                 "--calibration", calibration.string()});
+      }
       // The footage's frame rate, so that the exports play at the shot's
       // speed (a 60 fps helmet camera's mesh is not written at 30).
       const FootageTiming timing = FootageTimingFlags();
       args.insert(args.end(), timing.fps.begin(), timing.fps.end());
       nlohmann::json report = RunCommand("solve", args, dir);
+      if (rays) report["rays"] = DiagnosticsHeaderField(dir / "diagnostics.json", "rays");
+      report["unit_fit"] = DiagnosticsHeaderField(dir / "diagnostics.json", "unit_fit");
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
