@@ -30,6 +30,7 @@ void TrackOptions::Register(OptionFields* fields) {
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral and names are given");
   fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  day.Register(fields);
   fields->SetGroup("detect");
   detect.Register(fields);
   fields->SetGroup("track");
@@ -123,7 +124,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     ThrowInputError(input.calibration, 0, "hmc track needs two cameras, the file has {}",
                     rig.cameras.size());
   }
-  const Actor actor = LoadActor(input.actor);
+  const Actor actor = *LoadActorForDay(input.actor, options.day.markers);
   if (actor.markers.size() < 3) {
     ThrowInputError(input.actor, 0, "the actor has {} markers; tracking needs at least 3",
                     actor.markers.size());
