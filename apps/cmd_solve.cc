@@ -30,6 +30,7 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/command.h"
+#include "core/day_markers.h"
 #include "blending/lgi_solver.h"
 #include "blending/solve_index_cache.h"
 #include "blending/solve_method.h"
@@ -49,8 +50,10 @@ struct SolveCommandOptions {
                                   // blendshape-bounded | interp | lgi-rbf
   MethodOptions methods;
   SequenceInputOptions input;
+  DayMarkersOptions day;  // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields) {
+    day.Register(fields);
     fields->Add("method", &method,
                 "solve method: " + SolveMethodList());
     methods.Register(fields);
@@ -180,7 +183,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
                      {{cmd.actor_dir, "--actor"},
                       {cmd.bundles_file, "--bundles"},
                       {cmd.jaw_file, "--jaw"}});
-  const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
+  const std::shared_ptr<const Actor> loaded = LoadActorForDay(cmd.actor_dir, cmd.options.day.markers);
   const Actor& actor = *loaded;
   // The file's rows (a map per frame) live only until the dense sequence
   // is made: a long shot does not hold them through the solve.
