@@ -19,17 +19,22 @@
 namespace hmc {
 namespace {
 
+// A small synthetic package written to dir/actor, loaded back.
+Actor SmallPackage(const std::filesystem::path& dir, int seed) {
+  SynthActorOptions options;
+  options.seed = seed;
+  options.grid_u = 48;
+  options.grid_v = 40;
+  options.dataset_inbetweens = false;
+  options.dataset_combos = false;
+  WriteActor(SynthesizeActor(options), dir / "actor", 17);
+  return LoadActor(dir / "actor");
+}
+
 TEST(DayMarkersCache, CacheKeyFollowsTheMarkerSet) {
   for (const int seed : {3, 11}) {
     TempDir dir("hmc_day_markers_cache");
-    SynthActorOptions options;
-    options.seed = seed;
-    options.grid_u = 48;
-    options.grid_v = 40;
-    options.dataset_inbetweens = false;
-    options.dataset_combos = false;
-    WriteActor(SynthesizeActor(options), dir.path() / "actor", 17);
-    const Actor package = LoadActor(dir.path() / "actor");
+    const Actor package = SmallPackage(dir.path(), seed);
     PaintOptions paint;
     paint.jitter_mm = 1.5;
     const PaintedDots painted = PaintDots(package.neutral, package.markers, paint, seed);
@@ -63,13 +68,7 @@ TEST(DayMarkersCache, CacheKeyFollowsTheMarkerSet) {
 
 TEST(DayMarkersCache, BadMarkersFileIsNamed) {
   TempDir dir("hmc_day_markers_bad");
-  SynthActorOptions options;
-  options.grid_u = 48;
-  options.grid_v = 40;
-  options.dataset_inbetweens = false;
-  options.dataset_combos = false;
-  WriteActor(SynthesizeActor(options), dir.path() / "actor", 17);
-  const Actor package = LoadActor(dir.path() / "actor");
+  const Actor package = SmallPackage(dir.path(), 1);
   const std::filesystem::path bad = dir.path() / "bad.csv";
   WriteFileAtomic(bad, "name,vertex,face,weights,tags\nm0,,999999,0.2 0.3 0.5,\n");
   try {
