@@ -46,6 +46,7 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/command.h"
+#include "core/day_markers.h"
 #include "blending/lgi_solver.h"
 #include "blending/ray_constraints.h"
 #include "blending/solve_index_cache.h"
@@ -70,8 +71,10 @@ struct SolveCommandOptions {
   MethodOptions methods;
   SequenceInputOptions input;
   RayConstraintOptions rays;
+  DayMarkersOptions day;  // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields) {
+    day.Register(fields);
     fields->Add("method", &method,
                 "solve method: " + SolveMethodList());
     methods.Register(fields);
@@ -294,7 +297,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
         "head_from_helmet.csv) is needed to place them in head space",
         cmd.rays_file));
   }
-  const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
+  const std::shared_ptr<const Actor> loaded = LoadActorForDay(cmd.actor_dir, cmd.options.day.markers);
   const Actor& actor = *loaded;
   // The file's rows (a map per frame) live only until the dense sequence
   // is made: a long shot does not hold them through the solve.

@@ -37,6 +37,7 @@ void RunOptions::Register(OptionFields* fields) {
   fields->Add("from", &from, "first stage to redo even if complete (\"\" = redo only what changed)");
   fields->Add("to", &to, "last stage to run");
   footage.Register(fields);
+  day.Register(fields);
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral, where track names the dots (0 = track's "
               "default, configs/track.yaml)")
@@ -102,6 +103,9 @@ const std::map<std::pair<std::string, std::string>, std::string>& RunWideKeys() 
       }
     }
     k[{"track", "reference_frame"}] = "run.reference_frame";
+    for (const char* stage : {"track", "triangulate", "stabilize", "jaw", "solve"}) {
+      k[{stage, "markers"}] = "run.markers";
+    }
     return k;
   }();
   return keys;
@@ -211,6 +215,11 @@ class Pipeline {
     std::vector<std::string> timecode;
   };
   FootageTiming FootageTimingFlags() const;
+  // `args` with `--markers DAY_MARKERS` when the run has the day's markers.
+  std::vector<std::string> WithMarkers(std::vector<std::string> args) const {
+    if (!options_.day.markers.empty()) args.insert(args.end(), {"--markers", options_.day.markers});
+    return args;
+  }
 
   RunInput input_;
   RunOptions options_;
@@ -339,7 +348,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       if (options_.reference_frame > 0) {
         args.insert(args.end(), {"--reference_frame", std::to_string(options_.reference_frame)});
       }
-      return RunCommand("track", args, dir);
+      return RunCommand("track", WithMarkers(args), dir);
     };
   } else if (stage == "triangulate") {
     key.AddInput("tracks", Out("track", "tracks_2d.csv"));
@@ -349,10 +358,10 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     // from its neutral's curvature (docs/calibration.md).
     plan.run = [this, calibration](const fs::path& dir) {
       return RunCommand("triangulate",
-                        {"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
+                        WithMarkers({"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
                          "--calibration", calibration.string(), "--actor", input_.actor,
                          "--out", (dir / "bundles_helmet.csv").string(), "--diagnostics",
-                         (dir / "triangulation.csv").string()},
+                         (dir / "triangulation.csv").string()}),
                         dir);
     };
   } else if (stage == "stabilize") {
@@ -360,8 +369,8 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     key.AddInputText("actor", actor_hash_);
     plan.run = [this](const fs::path& dir) {
       return RunCommand("stabilize",
-                        {"stabilize", "--bundles", Out("triangulate", "bundles_helmet.csv").string(),
-                         "--actor", input_.actor, "--out", dir.string()},
+                        WithMarkers({"stabilize", "--bundles", Out("triangulate", "bundles_helmet.csv").string(),
+                         "--actor", input_.actor, "--out", dir.string()}),
                         dir);
     };
   } else if (stage == "jaw") {
@@ -374,8 +383,8 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     plan.run = [this](const fs::path& dir) {
       nlohmann::json report =
           RunCommand("jaw",
-                     {"jaw", "--bundles", Out("stabilize", "bundles.csv").string(), "--actor",
-                      input_.actor, "--out", (dir / "jaw.csv").string()},
+                     WithMarkers({"jaw", "--bundles", Out("stabilize", "bundles.csv").string(),
+                                  "--actor", input_.actor, "--out", (dir / "jaw.csv").string()}),
                      dir);
       // hmc jaw names its summary after --out: it is the stage's, as a
       // summary.json of the command would be (workspace.h).
@@ -420,6 +429,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
                                  Out("stabilize", "head_from_helmet.csv").string(),
                                  "--calibration", calibration.string()});
       }
+      args = WithMarkers(args);
       // The footage's frame rate, so that the exports play at the shot's
       // speed (a 60 fps helmet camera's mesh is not written at 30).
       const FootageTiming timing = FootageTimingFlags();
@@ -468,7 +478,9 @@ RunSummary Pipeline::Run() {
     ThrowInputError(input_.calibration, 0, "hmc run needs a rig of two cameras, the file has {}",
                     rig.cameras.size());
   }
-  const std::shared_ptr<const Actor> loaded = LoadActorShared(input_.actor);
+  // With the day's markers, the actor's hash is theirs too: every stage that
+  // reads the actor runs again for another marker set.
+  const std::shared_ptr<const Actor> loaded = LoadActorForDay(input_.actor, options_.day.markers);
   const Actor& actor = *loaded;
   actor_hash_ = HashHex(actor.content_hash);
   actor_has_jaw_ = actor.jaw_rig.has_value();

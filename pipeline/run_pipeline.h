@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "tracking/footage_reader.h"
 
@@ -35,6 +36,7 @@ struct RunOptions {
   int reference_frame = 0;  // frame where the actor is near neutral, for track (0 = track's own default)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
+  DayMarkersOptions day;    // markers: the day's markers, passed to every stage that loads the actor
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
 
   void Register(OptionFields* fields);

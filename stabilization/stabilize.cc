@@ -20,6 +20,7 @@
 namespace hmc {
 
 void StabilizeOptions::Register(OptionFields* fields) {
+  day.Register(fields);
   fields->Add("weighting", &weighting, "motion | tags | both (docs/stabilization.md)")
       .OneOf({"motion", "tags", "both"});
   fields->Add("noise_mm", &noise_mm, "sigma: bundle noise assumed by the motion weights (mm)")

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <future>
 #include <limits>
+#include <memory>
 #include <set>
 #include <cmath>
 #include <vector>
@@ -14,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/allocator.h"
+#include "core/day_markers.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
@@ -45,6 +47,7 @@ void SynthShotOptions::Register(OptionFields* fields) {
   rig.Register(fields);
   render.Register(fields);
   vary.Register(fields);
+  paint.Register(fields);
   fields->Add("nominal_mm", &nominal_mm,
               "write calibration.yaml with each camera centre moved by this (mm; the truth goes "
               "to calibration_true.yaml)")
@@ -62,7 +65,10 @@ void SynthShotOptions::Register(OptionFields* fields) {
 }
 
 bool SynthShotOptions::Check() const {
-  if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check()) return false;
+  if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check() ||
+      !paint.Check()) {
+    return false;
+  }
   if (!VaryRender(render, vary, static_cast<uint64_t>(performance.seed)).Check()) return false;
   CHECK_OPTION_LIMITS();
   return true;
@@ -214,11 +220,19 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   // The set of this seed (options.render itself when vary.on is false).
   const FootageRenderOptions render_options =
       VaryRender(options.render, options.vary, static_cast<uint64_t>(perf.seed));
-  FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig, render_options,
-                           static_cast<uint64_t>(perf.seed));
+  // The day's paint: where the dots really are (synth/paint.h).
+  const uint64_t paint_seed = static_cast<uint64_t>(
+      options.paint.seed >= 0 ? options.paint.seed : perf.seed);
+  const PaintedDots painted = PaintDots(actor.neutral, actor.markers, options.paint, paint_seed);
+  auto make_renderer = [&](int frame) {
+    return std::make_unique<FootageRenderer>(model.neutral(), model.face().st,
+                                             painted.At(frame), rig, render_options,
+                                             static_cast<uint64_t>(perf.seed));
+  };
+  std::unique_ptr<FootageRenderer> renderer_ptr = make_renderer(1);
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
-  const int num_cameras = renderer.NumCameras();
+  const int num_cameras = renderer_ptr->NumCameras();
   const bool render = options.video != "none";
   const bool perturbed =
       options.nominal_mm > 0 || options.nominal_deg > 0 || options.nominal_focal_pct > 0;
@@ -248,7 +262,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   // The tags' corners in the rig before any knock (calibration_true.yaml).
   std::string tags_csv = "camera,tag,corner,x,y\n";
   for (int c = 0; c < num_cameras; ++c) {
-    const auto corners = renderer.ProjectTagCorners(c);
+    const auto corners = renderer_ptr->ProjectTagCorners(c);
     for (size_t t = 0; t < corners.size(); ++t) {
       for (int i = 0; i < 4; ++i) {
         tags_csv += fmt::format("{},{},{},{:.6f},{:.6f}\n", rig.cameras[c].name, rig.tags[t].id,
@@ -293,8 +307,17 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   Progress progress("synth shot", num_frames);
   for (int f = 0; f < num_frames; ++f) {
     const int frame = truth.start_frame + f;
+    if (f > 0 && frame == painted.lost_frame) {
+      // Dots rubbed off from here on: the same scene without them.
+      renderer_ptr = make_renderer(frame);
+      if (knock_camera >= 0 && frame > options.knock_frame) {
+        renderer_ptr->SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
+      }
+    }
+    const FootageRenderer& renderer = *renderer_ptr;
+    const std::vector<Marker> markers = painted.At(frame);
     if (knock_camera >= 0 && frame == options.knock_frame) {
-      renderer.SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
+      renderer_ptr->SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
     }
     const Eigen::VectorXd& a = performance.activations[f];
     truth.frames.push_back(model.Evaluate(a));
@@ -321,7 +344,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     bundles_head[f].frame = frame;
     bundles_helmet[f].frame = frame;
     const Rigid3 helmet_from_head = head_from_helmet.inverse();
-    for (const Marker& marker : actor.markers) {
+    for (const Marker& marker : markers) {
       const Vec3 p = EvaluateSurfacePoint(marker.point, F, X);
       bundles_head[f].bundles[marker.name] = p;
       bundles_helmet[f].bundles[marker.name] = helmet_from_head * p;
@@ -351,7 +374,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
         };
         dots_csv += fmt::format(
             "{},{},{},{:.6f},{:.6f},{},{},{},{:.3f},{:.3f},{},{}\n", frame, rig.cameras[c].name,
-            actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
+            markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
             DotDiscName(dots[m].disc), pair(dots[m].centroid), dots[m].seen, dots[m].view_cos,
             dots[m].whole ? 1 : 0, pair(dots[m].whole_centroid));
       }
@@ -392,6 +415,17 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   }
   WriteJawCsv(out_dir / "jaw.csv", jaw);
   WriteFileAtomic(out_dir / "tags_2d.csv", tags_csv);
+  std::string paint_note = fmt::format("# painted dots (hmc synth shot, paint seed {}, jitter {} mm)\n",
+                                       paint_seed, options.paint.jitter_mm);
+  if (!painted.missing.empty()) {
+    paint_note += fmt::format("# unpainted: {}\n", fmt::join(painted.missing, " "));
+  }
+  if (!painted.lost.empty()) {
+    paint_note += fmt::format("# lost from frame {}: {}\n", painted.lost_frame,
+                              fmt::join(painted.lost, " "));
+  }
+  WriteFileAtomic(out_dir / "painted_markers.csv",
+                  FormatMarkersCsv(painted.markers, nullptr, paint_note));
   truth.topology = actor.neutral;
   WriteMeshSequence(out_dir / "truth.pc2", truth);
   WriteObj(out_dir / "neutral.obj", actor.neutral);

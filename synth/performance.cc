@@ -34,6 +34,10 @@ void PerformanceOptions::Register(OptionFields* fields) {
   fields->Add("jaw_activity", &jaw_activity,
               "peak of added slow jaw opening, swing, thrust (activation; 0 = none)")
       .In(0, 1);
+  fields->Add("expression_scale", &expression_scale,
+              "the performance's activations scaled by this (0 = a neutral hold)")
+      .AtLeast(0)
+      .AtMost(1);
 }
 
 bool PerformanceOptions::Check() const {
@@ -162,6 +166,7 @@ ShotPerformance MakePerformance(const FaceModel& model,
   all_units.holdout_units.clear();
   out.activations = TruthActivations(model, PlanDataset(model, all_units), truth);
   AddBrowAndJawActivity(model, options, &out.activations);
+  for (Eigen::VectorXd& a : out.activations) a *= options.expression_scale;
   for (int f = 0; f < options.frames; ++f) {
     out.head_from_helmet.push_back(HeadFromHelmetAt(options, f / options.fps));
   }

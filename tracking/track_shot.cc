@@ -31,6 +31,7 @@ void TrackOptions::Register(OptionFields* fields) {
               "frame where the actor is near neutral and names are given")
       .AtLeast(1);
   fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
+  day.Register(fields);
   fields->SetGroup("detect");
   detect.Register(fields);
   fields->SetGroup("track");
@@ -116,7 +117,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     ThrowInputError(input.calibration, 0, "hmc track needs two cameras, the file has {}",
                     rig.cameras.size());
   }
-  const Actor actor = LoadActor(input.actor);
+  const Actor actor = *LoadActorForDay(input.actor, options.day.markers);
   if (actor.markers.size() < 3) {
     ThrowInputError(input.actor, 0, "the actor has {} markers; tracking needs at least 3",
                     actor.markers.size());

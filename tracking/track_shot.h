@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "core/tracks_2d.h"
 #include "tracking/dot_detector.h"
@@ -26,6 +27,7 @@ struct TrackOptions {
   int threads = 0;               // worker threads (0 = all cores)
   DotDetectorOptions detect;     // detect.*
   MarkerTrackerOptions tracker;  // track.*
+  DayMarkersOptions day;         // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields);
   bool Check() const;
