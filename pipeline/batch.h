@@ -90,7 +90,8 @@ std::filesystem::path TakeLog(const std::filesystem::path& day, const std::strin
 nlohmann::json ReadTakeState(const std::filesystem::path& day, const std::string& take);
 
 // True when the take finished ("done") with the command line it would run
-// now and its workspace's report is there: the batch skips it.
+// now and its workspace is there: the batch skips it (its hmc run would
+// find every stage complete).
 bool TakeIsComplete(const std::filesystem::path& day, const BatchPlan& plan, const Take& take);
 
 // The per-take command: runs `hmc run` on the take with `run_command`

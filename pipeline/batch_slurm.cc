@@ -63,11 +63,10 @@ std::string Sbatch(const std::vector<std::string>& args) {
   if (code != 0) {
     std::string line;
     for (const std::string& a : command) line += " " + a;
-    throw InputError(fmt::format("sbatch refused a job (exit {}):{}\n{}", code, line,
-                                 std::string(Trim(err))));
+    throw InputError(fmt::format("sbatch refused a job (exit {}):{}\n{}", code, line, err));
   }
   // --parsable: "ID" or "ID;cluster".
-  const std::string id = std::string(Trim(out.substr(0, out.find(';'))));
+  std::string id = out.substr(0, out.find_first_of(";\r\n"));
   HMC_CHECK_MSG(!id.empty(), "sbatch printed no job id");
   return id;
 }
