@@ -465,7 +465,7 @@ void WriteDayFiles(const fs::path& day, const nlohmann::json& batch) {
   for (const auto& t : batch["takes"]) {
     std::string figures;
     for (const auto& [key, value] : t["figures"].items()) {
-      if (!value.is_null()) figures += fmt::format("{} {}<br>", key, FigureText(value));
+      if (!value.is_null()) figures += fmt::format("{}: {}<br>", key, FigureText(value));
     }
     std::string warnings;
     for (const auto& w : t["warnings"]) warnings += "<li>" + HtmlEscape(w.get<std::string>()) + "</li>";
