@@ -7,6 +7,7 @@
 #include <sys/file.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <string>
@@ -32,6 +33,7 @@ struct BatchCommand {
   std::string takes, actor, calibration, out, status, take;
   bool wait = false;
   bool day_report = false;
+  bool plan = false;
   BatchOptions options;
 };
 
@@ -104,6 +106,10 @@ HMC_COMMAND(Batch, "", "batch",
                 "With --out DAY: write batch.json and report.html from the workspaces (the "
                 "last SLURM job)")
       ->group(other);
+  app->add_flag("--plan", cmd->plan,
+                "Write the day's plan and print the command of each take still to do, one per "
+                "line, without running them: for a farm's own submitter (docs/farm.md)")
+      ->group(other);
   OptionFields fields;
   cmd->options.Register(&fields);
   // --config: `batch:` holds these options; every other section is the
@@ -118,6 +124,8 @@ HMC_COMMAND(Batch, "", "batch",
     const fs::path day = fs::absolute(cmd->out).lexically_normal();
     if (!cmd->take.empty()) {
       const BatchPlan plan = ReadPlan(day);
+      // The actor's index from the day's cache, whoever started this take.
+      setenv("XDG_CACHE_HOME", DayIndexCache(day).c_str(), 1);
       return RunTake(day, plan, cmd->take, &RunCommandLine);
     }
     if (cmd->day_report) {
@@ -147,6 +155,18 @@ HMC_COMMAND(Batch, "", "batch",
     plan.takes = ReadTakes(cmd->takes);
     plan.run_config = WriteRunConfig(day, binding->config_file());
     WritePlan(day, plan);
+    if (cmd->plan) {
+      const std::string hmc = SelfExecutable().string();
+      std::printf("XDG_CACHE_HOME='%s' '%s' index --actor '%s'\n", DayIndexCache(day).c_str(),
+                  hmc.c_str(), plan.actor.c_str());
+      for (const Take& take : plan.takes) {
+        if (TakeIsComplete(day, plan, take)) continue;
+        std::printf("'%s' batch --out '%s' --take '%s'\n", hmc.c_str(), day.c_str(),
+                    take.name.c_str());
+      }
+      std::printf("'%s' batch --out '%s' --day_report\n", hmc.c_str(), day.c_str());
+      return 0;
+    }
     if (cmd->options.scheduler == "slurm") {
       SubmitSlurmBatch(day, plan, cmd->options, SelfExecutable());
       return cmd->wait ? Status(day, true) : 0;

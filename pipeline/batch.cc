@@ -16,6 +16,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/hash.h"
 #include "core/text.h"
 #include "pipeline/subprocess.h"
 #include "pipeline/svg_plot.h"
@@ -311,11 +312,43 @@ nlohmann::json ReadTakeState(const fs::path& day, const std::string& take) {
   return ReadJsonOrNull(StateFile(day, take));
 }
 
+namespace {
+
+// What the day-level skip of a take compares besides its command line: the
+// run config's and the calibration's contents, and every file of the shot
+// folder and the actor package by path, size and modification time (cheap:
+// no footage is read; hmc run itself then compares contents stage by
+// stage).
+std::string TakeInputs(const BatchPlan& plan, const Take& take) {
+  ContentHasher hash;
+  std::error_code ec;
+  for (const std::string& file :
+       {plan.run_config, take.calibration.empty() ? plan.calibration : take.calibration}) {
+    if (!file.empty() && fs::is_regular_file(file, ec)) hash.Update(HashHex(HashFile(file)));
+  }
+  for (const std::string& folder : {take.shot, plan.actor}) {
+    std::vector<std::string> entries;
+    for (auto it = fs::recursive_directory_iterator(folder, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      if (!it->is_regular_file(ec)) continue;
+      const auto time = fs::last_write_time(it->path(), ec).time_since_epoch().count();
+      entries.push_back(fmt::format("{}\t{}\t{}", it->path().string(),
+                                    fs::file_size(it->path(), ec), time));
+    }
+    std::sort(entries.begin(), entries.end());
+    for (const std::string& e : entries) hash.Update(e + "\n");
+  }
+  return HashHex(hash.Digest());
+}
+
+}  // namespace
+
 bool TakeIsComplete(const fs::path& day, const BatchPlan& plan, const Take& take) {
   const nlohmann::json state = ReadTakeState(day, take.name);
   std::error_code ec;
   return state.is_object() && state.value("state", "") == "done" &&
          state.value("args", nlohmann::json()) == nlohmann::json(TakeRunArgs(day, plan, take)) &&
+         state.value("inputs", "") == TakeInputs(plan, take) &&
          fs::is_directory(day / take.name, ec);
 }
 
@@ -327,8 +360,10 @@ int RunTake(const fs::path& day, const BatchPlan& plan, const std::string& name,
                                  (day / ".batch" / "plan.json").string(), name));
   }
   const std::vector<std::string> args = TakeRunArgs(day, plan, *take);
-  nlohmann::json state = {{"state", "running"}, {"args", args},    {"started", NowUtc()},
-                          {"pid", getpid()},    {"reason", ""},    {"host", ""}};
+  nlohmann::json state = {{"state", "running"}, {"args", args},
+                          {"inputs", TakeInputs(plan, *take)},
+                          {"started", NowUtc()}, {"pid", getpid()},
+                          {"reason", ""},        {"host", ""}};
   char host[256] = {0};
   if (gethostname(host, sizeof host - 1) == 0) state["host"] = host;
   WriteTakeState(day, name, state);

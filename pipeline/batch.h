@@ -90,8 +90,10 @@ std::filesystem::path TakeLog(const std::filesystem::path& day, const std::strin
 nlohmann::json ReadTakeState(const std::filesystem::path& day, const std::string& take);
 
 // True when the take finished ("done") with the command line it would run
-// now and its workspace is there: the batch skips it (its hmc run would
-// find every stage complete).
+// now, its inputs unchanged (the run config's and the calibration's
+// contents; the shot's and the actor's files by size and time) and its
+// workspace there: the batch skips it (its hmc run would find every stage
+// complete).
 bool TakeIsComplete(const std::filesystem::path& day, const BatchPlan& plan, const Take& take);
 
 // The per-take command: runs `hmc run` on the take with `run_command`
