@@ -50,9 +50,11 @@ bool BatchOptions::Check() const {
 
 namespace {
 
-// Takes are folder names in DAY, hidden ones and "logs" are the batch's.
+// Takes are folder names in DAY; hidden ones and the names of the day's
+// own files and folders are the batch's.
 void CheckTakeName(const std::string& name, const fs::path& file, int line) {
-  const bool ok = !name.empty() && name[0] != '.' && name != "logs" &&
+  const bool ok = !name.empty() && name[0] != '.' && name != "logs" && name != "batch.json" &&
+                  name != "report.html" &&
                   std::all_of(name.begin(), name.end(), [](char c) {
                     return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' ||
                            c == '.';
@@ -60,7 +62,7 @@ void CheckTakeName(const std::string& name, const fs::path& file, int line) {
   if (!ok) {
     ThrowInputError(file, line,
                     "take name '{}' is not a folder name hmc batch can use (letters, digits, "
-                    "'_', '-', '.' not first; not 'logs')",
+                    "'_', '-', '.' not first; not logs, batch.json or report.html)",
                     name);
   }
 }

@@ -42,7 +42,7 @@ struct BatchOptions {
 
 // One take of the day.
 struct Take {
-  std::string name;         // DAY/<name>/; letters, digits, '_', '-', '.' (not first)
+  std::string name;         // DAY/<name>/; letters, digits, '_', '-', '.' (not first); not logs, batch.json, report.html
   std::string shot;         // shot folder (footage)
   std::string frames;       // frame range "A:B" ("" = the run config's, else all)
   std::string calibration;  // the take's calibration ("" = --calibration)

@@ -118,6 +118,12 @@ TEST_F(BatchTest, AListOfTakesWithFrameRanges) {
   const CliResult bad = RunHmc(BatchArgs(list, d / "list_day2"), d);
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("day_list.yaml:2"), std::string::npos) << bad.err;
+  // A take may not take the name of the day's own files.
+  WriteFileAtomic(list, fmt::format("takes:\n  - name: report.html\n    shot: takes/{}\n", Take(1)));
+  const CliResult reserved = RunHmc(BatchArgs(list, d / "list_day2"), d);
+  EXPECT_EQ(reserved.exit_code, 2);
+  EXPECT_NE(reserved.err.find("day_list.yaml:2"), std::string::npos) << reserved.err;
+  EXPECT_NE(reserved.err.find("'report.html'"), std::string::npos) << reserved.err;
 }
 
 }  // namespace
