@@ -157,8 +157,10 @@ HMC_COMMAND(Batch, "", "batch",
     WritePlan(day, plan);
     if (cmd->plan) {
       const std::string hmc = SelfExecutable().string();
-      std::printf("XDG_CACHE_HOME='%s' '%s' index --actor '%s'\n", DayIndexCache(day).c_str(),
-                  hmc.c_str(), plan.actor.c_str());
+      std::string index;
+      for (const std::string& arg : IndexArgs(day, plan)) index += " '" + arg + "'";
+      std::printf("XDG_CACHE_HOME='%s' '%s'%s\n", DayIndexCache(day).c_str(), hmc.c_str(),
+                  index.c_str());
       for (const Take& take : plan.takes) {
         if (TakeIsComplete(day, plan, take)) continue;
         std::printf("'%s' batch --out '%s' --take '%s'\n", hmc.c_str(), day.c_str(),

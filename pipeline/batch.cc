@@ -274,21 +274,43 @@ BatchPlan ReadPlan(const fs::path& day) {
 }
 
 std::string WriteRunConfig(const fs::path& day, const std::string& config) {
+  EnsureDirectory(day / ".batch");
+  const fs::path file = day / ".batch" / "run.yaml";
+  const fs::path index_file = day / ".batch" / "index.yaml";
+  std::error_code ec;
+  fs::remove(file, ec);
+  fs::remove(index_file, ec);
   if (config.empty()) return "";
   YAML::Node root = LoadYamlFile(config);
   YAML::Node run_config(YAML::NodeType::Map);
+  YAML::Node index_config(YAML::NodeType::Map);
   if (root.IsMap()) {
     for (const auto& kv : root) {
       if (kv.first.as<std::string>() != "batch") run_config[kv.first] = kv.second;
     }
+    // The solve's index options: the shared index must be the one the
+    // takes' solves look for.
+    const YAML::Node solve = root["solve"];
+    for (const char* group : {"index", "nn"}) {
+      if (solve && solve.IsMap() && solve[group]) index_config[group] = solve[group];
+    }
   }
-  EnsureDirectory(day / ".batch");
-  const fs::path file = day / ".batch" / "run.yaml";
-  YAML::Emitter emitter;
-  emitter << run_config;
-  WriteFileAtomic(file, std::string("# the run config of every take (hmc batch)\n") +
-                            emitter.c_str() + "\n");
+  auto write = [](const fs::path& path, const YAML::Node& node, const char* what) {
+    YAML::Emitter emitter;
+    emitter << node;
+    WriteFileAtomic(path, std::string("# ") + what + " (hmc batch)\n" + emitter.c_str() + "\n");
+  };
+  write(file, run_config, "the run config of every take");
+  if (index_config.size() > 0) write(index_file, index_config, "the solve's index options");
   return fs::absolute(file).string();
+}
+
+std::vector<std::string> IndexArgs(const fs::path& day, const BatchPlan& plan) {
+  std::vector<std::string> args = {"index", "--actor", plan.actor};
+  std::error_code ec;
+  const fs::path index_file = fs::absolute(day / ".batch" / "index.yaml");
+  if (fs::is_regular_file(index_file, ec)) args.insert(args.end(), {"--config", index_file.string()});
+  return args;
 }
 
 fs::path DayIndexCache(const fs::path& day) { return fs::absolute(day / ".batch" / "cache"); }
@@ -569,8 +591,9 @@ int RunLocalBatch(const fs::path& day, const BatchPlan& plan, int jobs,
   if (!todo.empty()) {
     // The actor's index, once, before any take: every take's solve then
     // loads it read-only from the day's cache.
-    const int index = WaitProcess(StartProcess(
-        {hmc_binary.string(), "index", "--actor", plan.actor}, env, day / "logs" / "index.log"));
+    std::vector<std::string> index_command = IndexArgs(day, plan);
+    index_command.insert(index_command.begin(), hmc_binary.string());
+    const int index = WaitProcess(StartProcess(index_command, env, day / "logs" / "index.log"));
     if (index != 0) {
       spdlog::warn("batch: hmc index failed (exit {}; {}): each take builds its own", index,
                    (day / "logs" / "index.log").string());

@@ -70,8 +70,15 @@ void WritePlan(const std::filesystem::path& day, const BatchPlan& plan);
 BatchPlan ReadPlan(const std::filesystem::path& day);
 
 // Writes DAY/.batch/run.yaml: `config` without its `batch:` section, or
-// nothing for an empty `config`; returns its path ("" = none).
+// nothing for an empty `config`; returns its path ("" = none). When its
+// `solve:` section sets index options (`index:`, `nn:`), also writes them
+// as DAY/.batch/index.yaml, the config of the day's `hmc index`.
 std::string WriteRunConfig(const std::filesystem::path& day, const std::string& config);
+
+// The `hmc index` command line (without the program name) that builds the
+// index every take's solve loads: the actor, and DAY/.batch/index.yaml if
+// there is one.
+std::vector<std::string> IndexArgs(const std::filesystem::path& day, const BatchPlan& plan);
 
 // The index cache every take of DAY reads (XDG_CACHE_HOME of the takes and
 // of the index job): DAY/.batch/cache.

@@ -127,8 +127,9 @@ SlurmJobs SubmitSlurmBatch(const fs::path& day, const BatchPlan& plan, const Bat
       "#!/bin/sh\n# Written by hmc batch (docs/farm.md); runs on a node of the cluster.\n"
       "export XDG_CACHE_HOME={}\n",
       Quote(DayIndexCache(day).string()));
-  WriteScript(dir / "index.sh",
-              head + fmt::format("exec {} index --actor {}\n", hmc, Quote(plan.actor)));
+  std::string index = "exec " + hmc;
+  for (const std::string& arg : IndexArgs(day, plan)) index += " " + Quote(arg);
+  WriteScript(dir / "index.sh", head + index + "\n");
   WriteScript(dir / "take.sh",
               head + fmt::format("take=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" {}/.batch/takes.txt)\n"
                                  "exec {} --threads \"${{SLURM_CPUS_PER_TASK:-0}}\" batch --out {} "

@@ -1,6 +1,6 @@
 // `hmc batch --scheduler slurm` (docs/farm.md): the day submitted to a real
 // SLURM with sbatch. Three jobs, files only between them:
-//   1. hmc-index: `hmc index --actor A` into the day's index cache;
+//   1. hmc-index: `hmc index --actor A` (IndexArgs) into the day's index cache;
 //   2. hmc-take: a job array, one task per take still to do (the array
 //      index is the take's line in DAY/.batch/takes.txt), each running
 //      the per-take command `hmc batch --out DAY --take NAME`, after 1

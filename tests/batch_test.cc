@@ -32,7 +32,11 @@ TEST_F(BatchTest, BadTakesFailWithTheirReasonTheOthersFinishAndCompleteTakesAreK
   ASSERT_EQ(shot.exit_code, 0) << shot.err;
   fs::create_directories(takes / "notes");  // no footage: not a take
   const fs::path day = d / "bad_day";
-  const CliResult batch = RunHmc(BatchArgs(takes, day) + " --jobs 2", d);
+  // A solve section with index options: the day's index is built with them
+  // (DAY/.batch/index.yaml), and the solve stage's mesh export runs.
+  WriteFileAtomic(d / "solve_index.yaml", "solve:\n  index:\n    max_edge_neighbours: 24\n");
+  const std::string config = fmt::format(" --config '{}'", (d / "solve_index.yaml").string());
+  const CliResult batch = RunHmc(BatchArgs(takes, day) + config + " --jobs 2", d);
   EXPECT_EQ(batch.exit_code, 1) << batch.err;  // some takes failed
   auto state = TakesByName(day);
   ASSERT_EQ(state.size(), 4u);
@@ -55,13 +59,19 @@ TEST_F(BatchTest, BadTakesFailWithTheirReasonTheOthersFinishAndCompleteTakesAreK
   EXPECT_EQ(state["good"]["figures"]["frames"], kFrames);
   EXPECT_NE(page.find("href=\"good/report/report.html\""), std::string::npos);
   EXPECT_NE(page.find("src=\"good/report/contact_sheet.png\""), std::string::npos);
+  // The actor's index was built once, before the takes, and the take's
+  // solve loaded it from the day's cache.
+  const nlohmann::json diagnostics = ReadJson(day / "good" / "solve" / "diagnostics.json");
+  EXPECT_EQ(diagnostics["index"]["from_cache"], true) << diagnostics["index"].dump();
+  EXPECT_NE(ReadFile(day / "logs" / "index.log").find("built in"), std::string::npos);
+  EXPECT_TRUE(fs::is_regular_file(day / "good" / "solve" / "mesh.usda"));
 
   // Again: the complete take is kept (not started again), the failed ones
   // are retried.
   const std::string started = state["good"]["started"];
   const auto before = DayData(day, {"good"});
   std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // a new start time differs
-  const CliResult again = RunHmc(BatchArgs(takes, day) + " --jobs 2", d);
+  const CliResult again = RunHmc(BatchArgs(takes, day) + config + " --jobs 2", d);
   EXPECT_EQ(again.exit_code, 1) << again.err;
   EXPECT_NE(again.err.find("take good complete: kept"), std::string::npos) << again.err;
   state = TakesByName(day);
@@ -82,7 +92,7 @@ TEST_F(BatchTest, AListOfTakesWithFrameRanges) {
   // --plan: the commands a farm manager runs, nothing run.
   const CliResult plan = RunHmc(BatchArgs(list, day) + " --plan", d);
   ASSERT_EQ(plan.exit_code, 0) << plan.err;
-  EXPECT_NE(plan.out.find(" index --actor "), std::string::npos) << plan.out;
+  EXPECT_NE(plan.out.find("'index' '--actor'"), std::string::npos) << plan.out;
   EXPECT_NE(plan.out.find("--take 'first'"), std::string::npos) << plan.out;
   EXPECT_NE(plan.out.find("--take '" + Take(2) + "'"), std::string::npos) << plan.out;
   EXPECT_NE(plan.out.find("--day_report"), std::string::npos) << plan.out;
