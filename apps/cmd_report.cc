@@ -1,9 +1,11 @@
 // `hmc report --work WORK --shot SHOT --actor DIR --out DIR`: the run report
 // page (pipeline/report.h): what every stage of the workspace did, plots
 // over frames, a contact sheet, warnings, and the error against the shot's
-// ground truth when it has one. The last stage of `hmc run`.
+// ground truth when it has one, and summary.json (the warnings). The last
+// stage of `hmc run`.
 #include <memory>
 
+#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "apps/command.h"
@@ -39,6 +41,13 @@ HMC_COMMAND(Report, "", "report",
       in.out = dir.string();
       summary = WriteRunReport(in, *options);
       WriteOptionsUsed(binding->fields(), dir / "options_used.yaml", "report");
+      // What a shoot day's report lists per take (pipeline/batch.h); in a
+      // workspace it becomes the stage's command_summary.
+      const nlohmann::json brief = {{"stage", "report"},
+                                    {"stages_present", summary.stages_present},
+                                    {"has_truth", summary.has_truth},
+                                    {"warnings", summary.warnings}};
+      WriteFileAtomic(dir / "summary.json", brief.dump(1) + "\n");
     });
     spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
     return 0;

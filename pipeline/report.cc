@@ -61,17 +61,6 @@ bool Exists(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
-std::string Escape(const std::string& text) {
-  std::string out;
-  for (const char c : text) {
-    if (c == '<') out += "&lt;";
-    else if (c == '>') out += "&gt;";
-    else if (c == '&') out += "&amp;";
-    else out += c;
-  }
-  return out;
-}
-
 std::string Base64(const std::vector<uchar>& bytes) {
   static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
@@ -91,7 +80,7 @@ std::string Base64(const std::vector<uchar>& bytes) {
 std::string ImgTag(const cv::Mat& image, const std::string& alt) {
   std::vector<uchar> png;
   cv::imencode(".png", image, png);
-  return fmt::format("<img alt=\"{}\" src=\"data:image/png;base64,{}\">", Escape(alt), Base64(png));
+  return fmt::format("<img alt=\"{}\" src=\"data:image/png;base64,{}\">", HtmlEscape(alt), Base64(png));
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -116,9 +105,9 @@ std::string SummaryCells(const nlohmann::json& j, int depth = 0) {
     if (v.is_object() && depth < 1) {
       out += SummaryCells(v, depth + 1);
     } else if (v.is_number_float()) {
-      out += fmt::format("<span class=kv>{}: {:.4g}</span> ", Escape(k), v.get<double>());
+      out += fmt::format("<span class=kv>{}: {:.4g}</span> ", HtmlEscape(k), v.get<double>());
     } else if (v.is_primitive()) {
-      out += fmt::format("<span class=kv>{}: {}</span> ", Escape(k), Escape(v.dump()));
+      out += fmt::format("<span class=kv>{}: {}</span> ", HtmlEscape(k), HtmlEscape(v.dump()));
     }
   }
   return out;
@@ -188,7 +177,7 @@ class ReportWriter {
   fs::path Stage(const std::string& stage, const std::string& file) const {
     return work_ / stage / file;
   }
-  void Section(const std::string& title) { html_ += "<h2>" + Escape(title) + "</h2>\n"; }
+  void Section(const std::string& title) { html_ += "<h2>" + HtmlEscape(title) + "</h2>\n"; }
   void Plot(const std::vector<PlotSeries>& series, PlotOptions o) { html_ += SvgLinePlot(series, o) + "\n"; }
   void Note(const std::string& text) { html_ += "<p>" + text + "</p>\n"; }
 
@@ -237,7 +226,7 @@ void ReportWriter::StageTable() {
     const nlohmann::json report = s.value("report", nlohmann::json::object());
     const bool skipped = report.contains("skipped");
     html_ += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.1f} s</td><td>{}</td></tr>\n", stage,
-                         skipped ? "skipped: " + Escape(report["skipped"].get<std::string>()) : "done",
+                         skipped ? "skipped: " + HtmlEscape(report["skipped"].get<std::string>()) : "done",
                          s.value("seconds", 0.0), SummaryCells(report));
   }
   html_ += "</table>\n";
@@ -602,7 +591,7 @@ ReportSummary ReportWriter::Write() {
   std::string warnings = "<h2>Warnings</h2>\n";
   if (summary_.warnings.empty()) warnings += "<p>none</p>\n";
   warnings += "<ul>\n";
-  for (const std::string& w : summary_.warnings) warnings += "<li>" + Escape(w) + "</li>\n";
+  for (const std::string& w : summary_.warnings) warnings += "<li>" + HtmlEscape(w) + "</li>\n";
   warnings += "</ul>\n";
   std::string page = fmt::format(
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>hmc run report: {}</title>\n"
@@ -612,8 +601,8 @@ ReportSummary ReportWriter::Write() {
       ".bad{{color:#b00}}img{{max-width:100%}}svg{{margin:4px}}</style></head><body>\n"
       "<h1>hmc run report</h1>\n<p>workspace <code>{}</code>, shot <code>{}</code>, actor "
       "<code>{}</code>{}</p>\n",
-      Escape(fs::path(in_.work).filename().string()), Escape(in_.work), Escape(in_.shot),
-      Escape(actor.name), summary_.has_truth ? " (ground truth present)" : "");
+      HtmlEscape(fs::path(in_.work).filename().string()), HtmlEscape(in_.work), HtmlEscape(in_.shot),
+      HtmlEscape(actor.name), summary_.has_truth ? " (ground truth present)" : "");
   page += warnings + html_ + "</body></html>\n";
   WriteFileAtomic(fs::path(in_.out) / "report.html", page);
   if (!summary_.accuracy.is_null()) {

@@ -285,8 +285,10 @@ Pipeline::FootageTiming Pipeline::FootageTimingFlags() const {
 
 nlohmann::json Pipeline::RunCommand(const std::string& stage, std::vector<std::string> args,
                                     const fs::path& dir) const {
+  // The stage's section is its own command's options: `hmc convert`,
+  // which the solve stage also runs, has none (and no --config).
   const auto section = config_.find(stage);
-  if (section != config_.end()) {
+  if (section != config_.end() && args.front() == stage) {
     const fs::path config = dir / "run_config.yaml";
     WriteFileAtomic(config, section->second);
     args.insert(args.end(), {"--config", config.string()});

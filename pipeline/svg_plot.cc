@@ -13,20 +13,6 @@ namespace {
 const char* const kPalette[] = {"#0072B2", "#E69F00", "#009E73", "#D55E00",
                                 "#CC79A7", "#56B4E9", "#F0E442", "#000000"};
 
-std::string Escape(const std::string& text) {
-  std::string out;
-  for (const char c : text) {
-    switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
-
 // About five round tick values covering [lo, hi].
 std::vector<double> Ticks(double lo, double hi) {
   const double span = hi - lo;
@@ -46,6 +32,21 @@ std::vector<double> Ticks(double lo, double hi) {
 
 }  // namespace
 
+std::string HtmlEscape(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    switch (c) {
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '&': out += "&amp;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+
 std::string SvgLinePlot(const std::vector<PlotSeries>& series, const PlotOptions& options) {
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0;
   double y0 = x0, y1 = -x0;
@@ -63,7 +64,7 @@ std::string SvgLinePlot(const std::vector<PlotSeries>& series, const PlotOptions
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" "
       "viewBox=\"0 0 {} {}\" font-family=\"sans-serif\" font-size=\"11\">"
       "<text x=\"{}\" y=\"14\" text-anchor=\"middle\" font-size=\"13\">{}</text>",
-      w, h, w, h, w / 2, Escape(options.title));
+      w, h, w, h, w / 2, HtmlEscape(options.title));
   if (!std::isfinite(x0)) {
     return svg + fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\" fill=\"#888\">"
                              "no data</text></svg>",
@@ -95,10 +96,10 @@ std::string SvgLinePlot(const std::vector<PlotSeries>& series, const PlotOptions
                        left, py(t), right, left - 4, py(t) + 4, t);
   }
   svg += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>", (left + right) / 2,
-                     h - 4, Escape(options.x_label));
+                     h - 4, HtmlEscape(options.x_label));
   svg += fmt::format("<text transform=\"translate(12,{}) rotate(-90)\" text-anchor=\"middle\">{}"
                      "</text>",
-                     (top + bottom) / 2, Escape(options.y_label));
+                     (top + bottom) / 2, HtmlEscape(options.y_label));
   int legend_row = 0;
   for (size_t i = 0; i < series.size(); ++i) {
     if (series[i].points.empty()) continue;
@@ -119,7 +120,7 @@ std::string SvgLinePlot(const std::vector<PlotSeries>& series, const PlotOptions
     svg += fmt::format("<line x1=\"{0}\" y1=\"{1}\" x2=\"{2}\" y2=\"{1}\" stroke=\"{3}\" "
                        "stroke-width=\"2\"/><text x=\"{4}\" y=\"{5}\">{6}</text>",
                        right + 8, ly, right + 24, colour, right + 28, ly + 4,
-                       Escape(series[i].name));
+                       HtmlEscape(series[i].name));
   }
   return svg + "</svg>";
 }

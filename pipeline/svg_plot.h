@@ -22,6 +22,9 @@ struct PlotOptions {
   bool y_from_zero = false;  // include 0 in the y range
 };
 
+// `text` with <, >, & and " escaped, for HTML text and attribute values.
+std::string HtmlEscape(const std::string& text);
+
 // An <svg> element: axes with ticks, one polyline per series (a fixed
 // colour-blind-safe palette), a legend. Empty series are skipped; with no
 // points at all, a note saying so.
