@@ -430,7 +430,15 @@ RunSummary Pipeline::Run() {
       run.status = "skipped";
       run.note = plan.skip_reason;
     } else {
-      work_.RunStage(plan.key, plan.run);
+      // Each stage's report names the run's inputs, so that `hmc review
+      // --work WORK` finds the footage and the actor (docs/formats.md,
+      // "Shot workspace").
+      work_.RunStage(plan.key, [&](const fs::path& dir) {
+        nlohmann::json report = plan.run(dir);
+        report["run_inputs"] = {{"shot", fs::absolute(input_.shot).lexically_normal().string()},
+                                {"actor", fs::absolute(input_.actor).lexically_normal().string()}};
+        return report;
+      });
       run.status = "done";
     }
     ReturnFreedMemory();
