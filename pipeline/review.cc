@@ -435,8 +435,8 @@ void ReviewWriter::WriteChunks() {
         const auto s = state_.find({f, m});
         if (s != state_.end()) state = s->second;
         std::string& out = per_camera[c->second];
-        out += fmt::format("{}{},{},{},{}", out.empty() ? "" : ",", m, Num(t.pixel.x(), 2),
-                           Num(t.pixel.y(), 2), state);
+        out += fmt::format("{}{},{},{},{}", out.empty() ? "" : ",", m, Num(t.pixel.x(), 3),
+                           Num(t.pixel.y(), 3), state);
       }
       std::string tracks = "[";
       for (size_t c = 0; c < per_camera.size(); ++c) tracks += (c ? ",[" : "[") + per_camera[c] + "]";
@@ -523,7 +523,7 @@ void ReviewWriter::WriteMeta() {
                                 {"frames", nlohmann::json::array()}});
   }
   // The fixes the track stage applied (hmc track --fixes), if any.
-  const fs::path fixes = Stage("track", "track_fixes.csv");
+  const fs::path fixes = Stage("track", "track_fixes_used.csv");
   meta["fixes_used"] = Exists(fixes) ? ReadFile(fixes) : "";
   WriteScript("data/meta.js", "hmcReview.meta(" + meta.dump() + ");\n");
 }

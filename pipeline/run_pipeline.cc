@@ -290,6 +290,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     if (options_.reference_frame > 0) {
       key.AddInputText("reference_frame", std::to_string(options_.reference_frame));
     }
+    if (!input_.fixes.empty()) key.AddInput("fixes", input_.fixes);
     plan.run = [this, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
                                        calibration.string(), "--actor", input_.actor, "--out",
@@ -300,6 +301,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       if (options_.reference_frame > 0) {
         args.insert(args.end(), {"--reference_frame", std::to_string(options_.reference_frame)});
       }
+      if (!input_.fixes.empty()) args.insert(args.end(), {"--fixes", input_.fixes});
       return RunCommand("track", args, dir);
     };
   } else if (stage == "triangulate") {

@@ -6,6 +6,7 @@
 #include <future>
 #include <limits>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -21,6 +22,7 @@
 #include "core/logging.h"
 #include "core/parallel.h"
 #include "tracking/overlay.h"
+#include "tracking/track_fixes.h"
 
 namespace hmc {
 
@@ -135,6 +137,30 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     names.push_back(hc.name);
     sizes.emplace_back(hc.camera.width, hc.camera.height);
   }
+  // The fixes, per frame and camera, resolved to the layout's markers.
+  std::vector<TrackFix> fixes;
+  std::map<int, std::vector<std::vector<TrackerFix>>> fixes_at;
+  std::map<int, std::vector<std::vector<int>>> fix_lines;  // the same, their lines in the file
+  if (!input.fixes.empty()) {
+    fixes = ReadTrackFixesCsv(input.fixes, names, layout.names);
+    std::map<std::string, int> marker_of, camera_of;
+    for (size_t k = 0; k < layout.names.size(); ++k) marker_of[layout.names[k]] = static_cast<int>(k);
+    for (size_t c = 0; c < names.size(); ++c) camera_of[names[c]] = static_cast<int>(c);
+    for (const TrackFix& f : fixes) {
+      TrackerFix t;
+      t.action = f.action;
+      t.marker = f.marker.empty() ? -1 : marker_of.at(f.marker);
+      t.to = f.to.empty() ? -1 : marker_of.at(f.to);
+      t.has_pixel = f.has_pixel;
+      t.pixel = f.pixel;
+      auto& at = fixes_at[f.frame];
+      auto& lines = fix_lines[f.frame];
+      at.resize(names.size());
+      lines.resize(names.size());
+      at[camera_of.at(f.camera)].push_back(t);
+      lines[camera_of.at(f.camera)].push_back(f.line);
+    }
+  }
   TrackOutput output;
   FootageReader reader(input.shot, names, options.footage, sizes);
   const int num_cameras = reader.num_cameras();
@@ -160,6 +186,21 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   // (CameraFrameTracks::vacant), and the last such frame.
   std::vector<int> vacant_frames(layout.names.size(), 0);
   std::vector<int> vacant_in(layout.names.size(), std::numeric_limits<int>::min());
+  // What the frame's fixes did (a camera whose image was missing applied none).
+  std::set<int> fixed_frames;
+  auto count_fixes = [&](int frame, const std::vector<FixOutcome>& outcome) {
+    const auto lines = fix_lines.find(frame);
+    if (lines == fix_lines.end()) return;
+    fixed_frames.insert(frame);
+    for (size_t c = 0; c < lines->second.size(); ++c) {
+      if (c >= outcome.size()) {
+        for (int line : lines->second[c]) summary.fixes_unmatched_lines.push_back(line);
+        continue;
+      }
+      summary.fixes_applied += outcome[c].applied;
+      for (int i : outcome[c].unmatched) summary.fixes_unmatched_lines.push_back(lines->second[c][i]);
+    }
+  };
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
@@ -213,7 +254,11 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
         spdlog::debug("reference frame {} {}: dot size {:.2f} px, {} detections", frame->frame,
                       names[c], dot_size[c], detections[c].size());
       }
-      result = tracker.Start(detections, frame->images, dot_size);
+      const auto fix = fixes_at.find(frame->frame);
+      std::vector<FixOutcome> outcome;
+      result = tracker.Start(detections, frame->images, dot_size,
+                             fix == fixes_at.end() ? nullptr : &fix->second, &outcome);
+      count_fixes(frame->frame, outcome);
       summary.labelling = tracker.labelling();
       if (!summary.labelling.ok) {
         ThrowInputError(input.shot, 0, "cannot label the reference frame {}: {}", frame->frame,
@@ -222,7 +267,11 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       summary.reference_frame = frame->frame;
       started = true;
     } else {
-      result = tracker.Step(detections, frame->images);
+      const auto fix = fixes_at.find(frame->frame);
+      std::vector<FixOutcome> outcome;
+      result = tracker.Step(detections, frame->images,
+                            fix == fixes_at.end() ? nullptr : &fix->second, &outcome);
+      count_fixes(frame->frame, outcome);
     }
     ++summary.frames;
     nlohmann::json frame_json;
@@ -264,6 +313,21 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                     options.reference_frame);
   }
   for (const std::string& w : reader.warnings()) summary.warnings.push_back(w);
+  summary.fixes = static_cast<int>(fixes.size());
+  for (const auto& [frame, lines] : fix_lines) {
+    if (fixed_frames.count(frame)) continue;  // a frame not tracked (before the reference, outside the range)
+    for (const auto& camera_lines : lines) {
+      for (int line : camera_lines) summary.fixes_unmatched_lines.push_back(line);
+    }
+  }
+  std::sort(summary.fixes_unmatched_lines.begin(), summary.fixes_unmatched_lines.end());
+  if (!summary.fixes_unmatched_lines.empty()) {
+    summary.warnings.push_back(fmt::format(
+        "{} of the {} fixes of {} not applied (no dot where they point, or a frame not tracked): "
+        "lines {}",
+        summary.fixes_unmatched_lines.size(), fixes.size(), input.fixes.string(),
+        fmt::join(summary.fixes_unmatched_lines, ", ")));
+  }
   std::vector<bool> found(layout.names.size(), false);
   std::map<std::string, size_t> index;
   for (size_t m = 0; m < layout.names.size(); ++m) index[layout.names[m]] = m;
@@ -294,6 +358,10 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   summary.rows = static_cast<int64_t>(output.tracks.size());
 
   WriteTracks2dCsv(input.out, output.tracks);
+  // The fixes used are kept beside the tracks (the workspace records them).
+  if (!input.fixes.empty()) {
+    WriteFileAtomic(input.out.parent_path() / "track_fixes_used.csv", TrackFixesCsvText(fixes));
+  }
   OptionFields used;
   TrackOptions copy = options;
   copy.Register(&used);
@@ -321,6 +389,12 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                       {"lateral_deg", summary.labelling.jaw.lateral_deg},
                       {"protrude_mm", summary.labelling.jaw.protrude_mm}}}};
   j["warnings"] = summary.warnings;  // with every frame that failed to decode
+  if (!input.fixes.empty()) {
+    j["fixes"] = {{"file", input.fixes.string()},
+                  {"rows", summary.fixes},
+                  {"applied", summary.fixes_applied},
+                  {"unmatched_lines", summary.fixes_unmatched_lines}};
+  }
   j["never_found"] = summary.never_found;
   j["missing_dots"] = summary.missing_dots;
   j["summary"] = {{"frames", summary.frames},

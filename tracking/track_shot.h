@@ -38,6 +38,10 @@ struct TrackInput {
   std::filesystem::path out;          // tracks_2d.csv to write
   std::filesystem::path overlay_dir;  // PNGs with the named dots ("" = none)
   std::filesystem::path diagnostics;  // JSON per frame and camera ("" = none)
+  // track_fixes.csv to apply as hard constraints ("" = none;
+  // tracking/track_fixes.h); the fixes used are written beside `out` as
+  // track_fixes_used.csv.
+  std::filesystem::path fixes;
 };
 
 struct TrackSummary {
@@ -66,6 +70,11 @@ struct TrackSummary {
   // or painted elsewhere, and then the dots near them may carry wrong
   // names; warned.
   std::vector<std::string> missing_dots;
+  // Track fixes (TrackInput::fixes): rows read, applied, and the lines
+  // of the file whose dot was not found (or whose frame was not tracked).
+  int fixes = 0;
+  int fixes_applied = 0;
+  std::vector<int> fixes_unmatched_lines;
   std::vector<std::string> warnings;
   std::string BriefReport() const;
 };

@@ -605,7 +605,10 @@ const hmcReview = (function () {
     buildWarnings();
     bindControls();
     renderFixTable();
-    const start = m.start_index || 0;
+    // ?frame=N&colour=error: where the page opens (links, screenshots).
+    const params = new URLSearchParams(location.search);
+    const start = params.has('frame') ? indexOf(+params.get('frame')) : 0;
+    if (params.has('colour')) document.getElementById('colour').value = params.get('colour');
     const ready = m.mesh && S.three ? loadScript('data/topology.js') : Promise.resolve();
     ready.then(() => setFrame(start)).catch((e) => setStatus(e.message))
       .then(() => { if (S.testMode) runTests(); });
