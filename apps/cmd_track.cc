@@ -1,9 +1,10 @@
 // `hmc track --shot SHOT --calibration CAL --actor DIR --out tracks_2d.csv
 //   [--reference_frame N] [--overlay DIR] [--diagnostics FILE.json]
-//   [--dot_size PX] [--fixes track_fixes.csv] [--config configs/track.yaml]`: the painted dots of a
+//   [--dot_size PX] [--fixes track_fixes.csv] [--proxies DIR] [--config configs/track.yaml]`: the painted dots of a
 // stereo helmet-camera shot, detected in the fisheye frames, named from the
 // actor's marker layout at the reference frame and tracked over the shot
 // (tracking/track_shot.h; method: docs/tracking.md; files: docs/formats.md).
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -30,6 +31,7 @@ HMC_COMMAND(Track, "", "track",
   auto diagnostics = std::make_shared<std::string>();
   auto dot_size = std::make_shared<double>(0);
   auto fixes = std::make_shared<std::string>();
+  auto proxies = std::make_shared<std::string>();
   app->add_option("--shot", *shot, "Shot folder (cam0/cam1 videos or image folders)")->required();
   app->add_option("--calibration", *calibration, "calibration.yaml of the rig")->required();
   app->add_option("--actor", *actor, "Actor package (its markers are named)")->required();
@@ -39,6 +41,9 @@ HMC_COMMAND(Track, "", "track",
   app->add_option("--fixes", *fixes,
                   "track_fixes.csv (from hmc review) applied as hard constraints; the tracking "
                   "goes on from them (docs/review.md)");
+  app->add_option("--proxies", *proxies,
+                  "Folder for the footage proxies of hmc review (JPEGs of the face per camera and "
+                  "frame, proxies.json)");
   app->add_option("--dot_size", *dot_size,
                   "Expected dot diameter in px (same as --detect.dot_size_px; default: measured)");
   return [=] {
@@ -49,6 +54,7 @@ HMC_COMMAND(Track, "", "track",
     PrepareOutputPaths({{*out, "--out"},
                         {*diagnostics, "--diagnostics"},
                         {*overlay, "--overlay", true},
+                        {*proxies, "--proxies", true},
                         SideFile(out_dir / "options_used.yaml", "track"),
                         SideFile(out_dir / "summary.json", "track"),
                         fixes->empty() ? OutputFlag{}
@@ -69,16 +75,26 @@ HMC_COMMAND(Track, "", "track",
     in.diagnostics = *diagnostics;
     in.fixes = *fixes;
     TrackOutput output;
-    if (overlay->empty()) {
-      output = RunTrack(in, *options);
-    } else {
-      // The overlay frames are a folder written whole: a re-run over fewer
-      // frames leaves none of the earlier run's pictures behind.
-      WriteFolderAtomic(*overlay, "hmc track --overlay", [&](const std::filesystem::path& dir) {
-        in.overlay_dir = dir;
-        output = RunTrack(in, *options);
-      });
+    // The overlay frames and the proxies are folders written whole: a
+    // re-run over fewer frames leaves none of the earlier run's pictures.
+    std::function<void()> run = [&] { output = RunTrack(in, *options); };
+    if (!overlay->empty()) {
+      run = [&, inner = run] {
+        WriteFolderAtomic(*overlay, "hmc track --overlay", [&](const std::filesystem::path& dir) {
+          in.overlay_dir = dir;
+          inner();
+        });
+      };
     }
+    if (!proxies->empty()) {
+      run = [&, inner = run] {
+        WriteFolderAtomic(*proxies, "hmc track --proxies", [&](const std::filesystem::path& dir) {
+          in.proxy_dir = dir;
+          inner();
+        });
+      };
+    }
+    run();
     spdlog::info("track: {} -> {}", output.summary.BriefReport(), *out);
     return 0;
   };

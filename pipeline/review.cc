@@ -164,7 +164,11 @@ class ReviewWriter {
   void ReadTracks();
   void ReadStates();
   void ReadBundles();
+  // Per camera and frame a proxy JPEG (out/footage/<camera>/), its crop.
   void WriteProxies();
+  // The track stage's proxies (WORK/track/proxies/), copied; false if it
+  // made none.
+  bool CopyTrackProxies();
   void WriteTopology();
   void WriteChunks();
   void WriteMeta();
@@ -296,15 +300,48 @@ void ReviewWriter::ReadBundles() {
   }
 }
 
+bool ReviewWriter::CopyTrackProxies() {
+  const fs::path dir = Stage("track", "proxies");
+  if (!Exists(dir / "proxies.json")) return false;
+  const nlohmann::json p = ReadJson(dir / "proxies.json");
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& c : p.value("cameras", nlohmann::json::array())) by_name[c.value("name", "")] = c;
+  for (const std::string& name : cameras_) {
+    if (!by_name.count(name)) return false;  // not this calibration's cameras: decode the footage
+  }
+  proxy_frames_.assign(cameras_.size(), {});
+  for (size_t c = 0; c < cameras_.size(); ++c) {
+    const nlohmann::json& cam = by_name[cameras_[c]];
+    const auto crop = cam.value("crop", std::vector<int>{});
+    if (crop.size() != 4) ThrowInputError(dir / "proxies.json", 0, "camera {}: crop is not x, y, width, height", cameras_[c]);
+    crops_.emplace_back(crop[0], crop[1], crop[2], crop[3]);
+    EnsureDirectory(out_ / "footage" / cameras_[c]);
+    for (const int f : cam.value("frames", std::vector<int>{})) {
+      const std::string file = fmt::format("{:06d}.jpg", f);
+      const std::string jpeg = ReadFile(dir / cameras_[c] / file);
+      WriteFileAtomic(out_ / "footage" / cameras_[c] / file, jpeg);
+      summary_.proxy_bytes += static_cast<int64_t>(jpeg.size());
+      ++summary_.proxies;
+      proxy_frames_[c].push_back(f);
+      footage_first_ = std::min(footage_first_, f);
+      footage_last_ = std::max(footage_last_, f);
+    }
+  }
+  return true;
+}
+
 void ReviewWriter::WriteProxies() {
   FootageReader reader(shot_, cameras_, TrackFootage(work_));
   if (reader.fps() > 0) fps_ = reader.fps();
+  for (int c = 0; c < reader.num_cameras(); ++c) summary_.footage_bytes += PathBytes(reader.source(c));
+  // The track stage's proxies when it made them (hmc run does): the
+  // footage is not decoded a second time.
+  if (CopyTrackProxies()) return;
   footage_first_ = reader.first_frame();
   footage_last_ = reader.last_frame();
   const int n = reader.num_cameras();
   proxy_frames_.assign(n, {});
   for (int c = 0; c < n; ++c) {
-    summary_.footage_bytes += PathBytes(reader.source(c));
     EnsureDirectory(out_ / "footage" / cameras_[c]);
     // The proxy shows the face: the box of the camera's named dots over
     // the shot, as the report's contact sheet frames it.

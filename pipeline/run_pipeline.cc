@@ -295,7 +295,10 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
                                        calibration.string(), "--actor", input_.actor, "--out",
                                        (dir / "tracks_2d.csv").string(), "--diagnostics",
-                                       (dir / "diagnostics.json").string()};
+                                       (dir / "diagnostics.json").string(),
+                                       // hmc review's footage proxies, made as the footage is
+                                       // decoded for the tracking (docs/review.md)
+                                       "--proxies", (dir / "proxies").string()};
       const std::vector<std::string> footage = FootageFlags();
       args.insert(args.end(), footage.begin(), footage.end());
       if (options_.reference_frame > 0) {

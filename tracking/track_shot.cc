@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -99,6 +100,60 @@ cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
   cv::putText(bgr, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
               cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
   return bgr;
+}
+
+// A proxy's crop: the box of the reference frame's named dots with a margin
+// of 35 % of its size (the head moves in the helmet, the jaw opens) and 10
+// px, inside the image.
+cv::Rect ProxyCrop(const CameraFrameTracks& tracks, cv::Size size) {
+  const cv::Rect whole(0, 0, size.width, size.height);
+  if (tracks.pixel.empty()) return whole;
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (const Vec2& p : tracks.pixel) {
+    x0 = std::min(x0, p.x());
+    y0 = std::min(y0, p.y());
+    x1 = std::max(x1, p.x());
+    y1 = std::max(y1, p.y());
+  }
+  const double margin = 0.35 * std::max(x1 - x0, y1 - y0) + 10;
+  const cv::Rect box(cv::Point(static_cast<int>(x0 - margin), static_cast<int>(y0 - margin)),
+                     cv::Point(static_cast<int>(x1 + margin), static_cast<int>(y1 + margin)));
+  const cv::Rect clipped = box & whole;
+  return clipped.area() > 0 ? clipped : whole;
+}
+
+// The proxy JPEG of one view: the frame as the tracker saw it (linear
+// light, exposure matched), encoded back to sRGB for a camera read as sRGB
+// so that it looks as stored.
+std::string ProxyJpeg(const cv::Mat& image, bool srgb, cv::Rect crop, int height, int quality) {
+  cv::Mat grey;
+  if (srgb) {
+    static const std::vector<uint8_t> lut = [] {
+      std::vector<uint8_t> t(65536);
+      for (int i = 0; i < 65536; ++i) {
+        const double v = i / 65535.0;
+        const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+        t[i] = static_cast<uint8_t>(std::lround(255 * std::clamp(e, 0.0, 1.0)));
+      }
+      return t;
+    }();
+    cv::Mat wide;
+    image(crop).convertTo(wide, CV_16U, image.depth() == CV_16U ? 1.0 : 257.0);
+    grey.create(wide.size(), CV_8U);
+    for (int y = 0; y < wide.rows; ++y) {
+      const uint16_t* in = wide.ptr<uint16_t>(y);
+      uint8_t* out = grey.ptr<uint8_t>(y);
+      for (int x = 0; x < wide.cols; ++x) out[x] = lut[in[x]];
+    }
+  } else {
+    grey = ToGrey8(image(crop));
+  }
+  const double s = static_cast<double>(height) / grey.rows;
+  cv::Mat small;
+  cv::resize(grey, small, cv::Size(), s, s, s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", small, jpeg, {cv::IMWRITE_JPEG_QUALITY, quality});
+  return std::string(jpeg.begin(), jpeg.end());
 }
 
 nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) {
@@ -201,6 +256,8 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       for (int i : outcome[c].unmatched) summary.fixes_unmatched_lines.push_back(lines->second[c][i]);
     }
   };
+  std::vector<cv::Rect> proxy_crops;          // per camera (input.proxy_dir)
+  std::vector<std::vector<int>> proxy_frames;  // per camera: the frames with a proxy
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
@@ -272,6 +329,22 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       result = tracker.Step(detections, frame->images,
                             fix == fixes_at.end() ? nullptr : &fix->second, &outcome);
       count_fixes(frame->frame, outcome);
+    }
+    if (!input.proxy_dir.empty()) {
+      if (proxy_crops.empty()) {
+        for (int c = 0; c < num_cameras; ++c) {
+          proxy_crops.push_back(ProxyCrop(result[c], frame->images[c].size()));
+          EnsureDirectory(input.proxy_dir / names[c]);
+        }
+        proxy_frames.assign(num_cameras, {});
+      }
+      ParallelFor(0, num_cameras, [&](int64_t c) {
+        if (!present[c]) return;
+        WriteFileAtomic(input.proxy_dir / names[c] / fmt::format("{:06d}.jpg", frame->frame),
+                        ProxyJpeg(frame->images[c], summary.transfer[c] == "srgb", proxy_crops[c],
+                                  input.proxy_height, input.proxy_quality));
+        proxy_frames[c].push_back(frame->frame);
+      });
     }
     ++summary.frames;
     nlohmann::json frame_json;
@@ -357,6 +430,20 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   summary.mean_named = views ? static_cast<double>(named_total) / views : 0;
   summary.rows = static_cast<int64_t>(output.tracks.size());
 
+  if (!input.proxy_dir.empty()) {
+    nlohmann::json proxies = {{"height", input.proxy_height},
+                              {"quality", input.proxy_quality},
+                              {"cameras", nlohmann::json::array()}};
+    for (int c = 0; c < num_cameras && c < static_cast<int>(proxy_crops.size()); ++c) {
+      const cv::Rect& r = proxy_crops[c];
+      proxies["cameras"].push_back({{"name", names[c]},
+                                    {"width", sizes[c].width},
+                                    {"height", sizes[c].height},
+                                    {"crop", {r.x, r.y, r.width, r.height}},
+                                    {"frames", proxy_frames[c]}});
+    }
+    WriteFileAtomic(input.proxy_dir / "proxies.json", proxies.dump() + "\n");
+  }
   WriteTracks2dCsv(input.out, output.tracks);
   // The fixes used are kept beside the tracks (the workspace records them).
   if (!input.fixes.empty()) {

@@ -42,6 +42,13 @@ struct TrackInput {
   // tracking/track_fixes.h); the fixes used are written beside `out` as
   // track_fixes_used.csv.
   std::filesystem::path fixes;
+  // Footage proxies for `hmc review` ("" = none): per camera and tracked
+  // frame a JPEG of the face (the box of the reference frame's named dots
+  // with a wide margin), `proxy_height` rows, written as the frame is
+  // decoded for the tracking anyway; and proxies.json (docs/formats.md).
+  std::filesystem::path proxy_dir;
+  int proxy_height = 360;   // px
+  int proxy_quality = 80;   // JPEG quality (1-100)
 };
 
 struct TrackSummary {

@@ -15,7 +15,6 @@ const hmcReview = (function () {
     index: 0, playing: false, timer: null, images: [], cams: [],
     fixes: [], selected: null, drag: null, three: null, errors: [],
     firstRender: null, testMode: /[?&]test=1/.test(location.search),
-    started: performance.now(),
   };
 
   // ---------- loading ----------
@@ -553,7 +552,7 @@ const hmcReview = (function () {
     }
     if (S.firstRender === null && S.cams.every((v) => v.shownFrame !== null) &&
         (!S.three || S.three.shownFrame !== null)) {
-      S.firstRender = performance.now() - S.started;
+      S.firstRender = performance.now();  // since the navigation started
     }
   }
   function togglePlay() {
