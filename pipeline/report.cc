@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <system_error>
@@ -510,18 +511,11 @@ void ReportWriter::SolveSection(const Actor& actor) {
   if (Exists(diag)) {
     PlotSeries outside{"outside their data (%)", {}}, residual{"mean residual (0.01 mm)", {}};
     nlohmann::json flagged = nlohmann::json::array();
-    // Each frame's record is used as the parser completes it, then dropped:
-    // the file grows with the shot (800 MB for 2,000 frames of a small
-    // actor), its parsed tree would be several times that.
-    auto frame_done = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& f) {
-      if (event != nlohmann::json::parse_event_t::object_end || !f.contains("frame") ||
-          !f.contains("bundles")) {
-        return true;
-      }
+    ForEachSolveFrame(diag, [&](const nlohmann::json& f) {
       const int frame = f.value("frame", 0);
       if (!f.value("ok", false)) {
         flagged.push_back({{"frame", frame}, {"reason", f.value("reason", std::string())}});
-        return false;
+        return;
       }
       int n = 0, projected = 0;
       double res = 0;
@@ -535,15 +529,7 @@ void ReportWriter::SolveSection(const Actor& actor) {
         outside.points.emplace_back(frame, 100.0 * projected / n);
         residual.points.emplace_back(frame, 100.0 * res / n);
       }
-      return false;
-    };
-    std::ifstream in(diag);
-    try {
-      const nlohmann::json rest = nlohmann::json::parse(in, frame_done);  // the frames dropped
-      (void)rest;
-    } catch (const nlohmann::json::exception& e) {
-      ThrowInputError(diag, 0, "not JSON: {}", e.what());
-    }
+    });
     FrameListWarnings(flagged, "solve", "flagged", &summary_.warnings);
     Plot({outside, residual}, {"solve: bundles outside their data, bundle residual", "frame", "", 640, 220, true});
   }
@@ -725,6 +711,26 @@ ReportSummary ReportWriter::Write() {
 }
 
 }  // namespace
+
+void ForEachSolveFrame(const fs::path& diagnostics, const std::function<void(const nlohmann::json&)>& body) {
+  // Each frame's record is used as the parser completes it, then dropped:
+  // the file grows with the shot (800 MB for 2,000 frames of a small
+  // actor), its parsed tree would be several times that.
+  auto frame_done = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& f) {
+    if (event != nlohmann::json::parse_event_t::object_end || !f.contains("frame") || !f.contains("bundles")) {
+      return true;
+    }
+    body(f);
+    return false;
+  };
+  std::ifstream in(diagnostics);
+  try {
+    const nlohmann::json rest = nlohmann::json::parse(in, frame_done);  // the frames dropped
+    (void)rest;
+  } catch (const nlohmann::json::exception& e) {
+    ThrowInputError(diagnostics, 0, "not JSON: {}", e.what());
+  }
+}
 
 cv::Rect NamedDotsBox(const std::vector<Track2d>& tracks, const std::string& camera, cv::Size size) {
   double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;

@@ -11,6 +11,8 @@
 // written beside it. docs/pipeline.md, "The report".
 #pragma once
 
+#include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -67,6 +69,13 @@ struct ReportSummary {
 // ground truth, OUT/mesh_error.png and OUT/accuracy.json. Throws
 // InputError for unreadable files, naming them.
 ReportSummary WriteRunReport(const ReportInput& input, const ReportOptions& options);
+
+// Calls `body` with each frame record ({frame, ok, bundles, ...}) of a
+// solve's diagnostics.json (docs/formats.md) as the streaming parser
+// completes it, then drops it: a long shot's file is never held parsed.
+// Throws InputError naming the file when it is not JSON.
+void ForEachSolveFrame(const std::filesystem::path& diagnostics,
+                       const std::function<void(const nlohmann::json&)>& body);
 
 // The box around `camera`'s named dots over the whole shot, with a margin,
 // inside an image of `size` (the whole image without tracks): how the

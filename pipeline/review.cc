@@ -8,7 +8,6 @@
 #include <cstring>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <future>
 #include <map>
 #include <set>
@@ -264,14 +263,11 @@ void ReviewWriter::ReadBundles() {
   const fs::path file = Stage("stabilize", "bundles.csv");
   if (!Exists(file)) return;
   // Per (frame, marker): the solve's residual and whether it fell outside
-  // its data (diagnostics.json, streamed as the report reads it).
+  // its data (diagnostics.json, streamed).
   std::map<std::pair<int, int>, std::pair<double, bool>> solve;
   const fs::path diag = Stage("solve", "diagnostics.json");
   if (Exists(diag)) {
-    auto frame_done = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& f) {
-      if (event != nlohmann::json::parse_event_t::object_end || !f.contains("frame") || !f.contains("bundles")) {
-        return true;
-      }
+    ForEachSolveFrame(diag, [&](const nlohmann::json& f) {
       const int frame = f.value("frame", 0);
       for (const auto& b : f["bundles"]) {
         const std::string status = b.value("status", std::string());
@@ -279,15 +275,7 @@ void ReviewWriter::ReadBundles() {
         solve[{frame, MarkerIndex(b.value("marker", std::string()))}] = {b.value("residual_mm", 0.0),
                                                                           status == "projected"};
       }
-      return false;
-    };
-    std::ifstream in(diag);
-    try {
-      const nlohmann::json rest = nlohmann::json::parse(in, frame_done);  // the frames dropped
-      (void)rest;
-    } catch (const nlohmann::json::exception& e) {
-      ThrowInputError(diag, 0, "not JSON: {}", e.what());
-    }
+    });
   }
   for (const BundleFrame& f : ReadBundlesCsv(file)) {
     auto& list = bundles_[f.frame];
@@ -318,9 +306,15 @@ bool ReviewWriter::CopyTrackProxies() {
     EnsureDirectory(out_ / "footage" / cameras_[c]);
     for (const int f : cam.value("frames", std::vector<int>{})) {
       const std::string file = fmt::format("{:06d}.jpg", f);
-      const std::string jpeg = ReadFile(dir / cameras_[c] / file);
-      WriteFileAtomic(out_ / "footage" / cameras_[c] / file, jpeg);
-      summary_.proxy_bytes += static_cast<int64_t>(jpeg.size());
+      // Hard-linked, not copied: no data written (a track stage redone
+      // later replaces its files, this page keeps its own); a copy where
+      // the file system refuses links. The folder is written whole
+      // (WriteFolderAtomic), so no proxy is ever seen half-written.
+      const fs::path from = dir / cameras_[c] / file, to = out_ / "footage" / cameras_[c] / file;
+      std::error_code ec;
+      fs::create_hard_link(from, to, ec);
+      if (ec) WriteFileAtomic(to, ReadFile(from));
+      summary_.proxy_bytes += static_cast<int64_t>(fs::file_size(to));
       ++summary_.proxies;
       proxy_frames_[c].push_back(f);
       footage_first_ = std::min(footage_first_, f);

@@ -99,6 +99,7 @@ const hmcReview = (function () {
       if (f.camera !== camName || f.frame > frame) continue;
       if (f.action === 'absent') absent.add(f.marker);
       if (f.action === 'rename') absent.delete(f.to);
+      if (f.action === 'move') absent.delete(f.marker);
       if (f.frame !== frame) continue;
       const d = dots.find((o) => o.marker === f.marker && (f.x === null || Math.hypot(o.x - f.x, o.y - f.y) < 1e-2)) ||
                 dots.find((o) => f.x !== null && Math.hypot(o.x - f.x, o.y - f.y) < 1e-2);
@@ -598,6 +599,11 @@ const hmcReview = (function () {
     document.title = 'hmc review: ' + m.title;
     document.getElementById('title').textContent = 'hmc review: ' + m.title;
     loadFixes();
+    if (m.fixes_used) {
+      const rows = m.fixes_used.trim().split('\n').length - 1;
+      document.getElementById('fixes_used').textContent =
+        'This run tracked with ' + rows + ' fix' + (rows === 1 ? '' : 'es') + ' (WORK/track/track_fixes_used.csv).';
+    }
     buildCameras();
     buildMesh();
     buildPlots();
