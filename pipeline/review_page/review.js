@@ -14,7 +14,7 @@ const hmcReview = (function () {
     meta: null, topology: null, chunks: new Map(), loading: new Map(),
     index: 0, playing: false, timer: null, images: [], cams: [],
     fixes: [], selected: null, drag: null, three: null, errors: [],
-    firstRender: null, testMode: /[?&]test=1/.test(location.search),
+    firstRender: null, testMode: /[?&]test=(1|open)/.test(location.search),
   };
 
   // ---------- loading ----------
@@ -658,6 +658,7 @@ const hmcReview = (function () {
     try {
       results.first_render_ok = await waitFor(() => S.firstRender !== null, 10000);
       results.first_render_ms = S.firstRender;
+      if (/[?&]test=open/.test(location.search)) throw 'open only';  // ?test=open: the open alone, timed from outside
       const a = S.index;
       const meshA = S.three && S.three.positions ? Array.from(S.three.positions.slice(0, 3 * Math.min(2000, S.meta.mesh.vertices))) : [];
       const frameA = S.cams.map((v) => v.shownFrame);
@@ -692,7 +693,7 @@ const hmcReview = (function () {
       S.fixes = [];
       saveFixes();
     } catch (e) {
-      results.exception = String(e && e.stack || e);
+      if (e !== 'open only') results.exception = String(e && e.stack || e);
     }
     results.errors = S.errors;
     out.setAttribute('data-done', '1');
