@@ -340,16 +340,21 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     if (options_.reference_frame > 0) {
       key.AddInputText("reference_frame", std::to_string(options_.reference_frame));
     }
+    if (!input_.fixes.empty()) key.AddInput("fixes", input_.fixes);
     plan.run = [this, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
                                        calibration.string(), "--actor", input_.actor, "--out",
                                        (dir / "tracks_2d.csv").string(), "--diagnostics",
-                                       (dir / "diagnostics.json").string()};
+                                       (dir / "diagnostics.json").string(),
+                                       // hmc review's footage proxies, made as the footage is
+                                       // decoded for the tracking (docs/review.md)
+                                       "--proxies", (dir / "proxies").string()};
       const std::vector<std::string> footage = FootageFlags();
       args.insert(args.end(), footage.begin(), footage.end());
       if (options_.reference_frame > 0) {
         args.insert(args.end(), {"--reference_frame", std::to_string(options_.reference_frame)});
       }
+      if (!input_.fixes.empty()) args.insert(args.end(), {"--fixes", input_.fixes});
       return RunCommand("track", WithMarkers(args), dir);
     };
   } else if (stage == "triangulate") {
@@ -514,7 +519,15 @@ RunSummary Pipeline::Run() {
       run.status = "skipped";
       run.note = plan.skip_reason;
     } else {
-      work_.RunStage(plan.key, plan.run);
+      // Each stage's report names the run's inputs, so that `hmc review
+      // --work WORK` finds the footage and the actor (docs/formats.md,
+      // "Shot workspace").
+      work_.RunStage(plan.key, [&](const fs::path& dir) {
+        nlohmann::json report = plan.run(dir);
+        report["run_inputs"] = {{"shot", fs::absolute(input_.shot).lexically_normal().string()},
+                                {"actor", fs::absolute(input_.actor).lexically_normal().string()}};
+        return report;
+      });
       run.status = "done";
     }
     ReturnFreedMemory();
