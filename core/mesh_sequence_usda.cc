@@ -64,9 +64,7 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
     };
     AppendUsdStageHeader(&text, "face", "hmc mesh sequence (mm, head space, +y up)", first, last,
                          seq.fps, seq.timecode);
-    text += "def Mesh \"face\"
-{
-";
+    text += "def Mesh \"face\"\n{\n";
     // Extent per sample: renderers and usdchecker expect it on a Mesh.
     text += "    float3[] extent.timeSamples = {\n";
     for (size_t f = 0; f < seq.frames.size(); ++f) {
