@@ -43,10 +43,14 @@ HMC_COMMAND(Report, "", "report",
       WriteOptionsUsed(binding->fields(), dir / "options_used.yaml", "report");
       // What a shoot day's report lists per take (pipeline/batch.h); in a
       // workspace it becomes the stage's command_summary.
+      // The warnings as lines (the day report lists them; plots.json has
+      // their markers and frames).
+      std::vector<std::string> warnings;
+      for (const ReportWarning& w : summary.warnings) warnings.push_back(w.Line());
       const nlohmann::json brief = {{"stage", "report"},
                                     {"stages_present", summary.stages_present},
                                     {"has_truth", summary.has_truth},
-                                    {"warnings", summary.warnings}};
+                                    {"warnings", warnings}};
       WriteFileAtomic(dir / "summary.json", brief.dump(1) + "\n");
     });
     spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
