@@ -35,6 +35,7 @@ struct RunOptions {
   int reference_frame = 0;  // frame where the actor is near neutral, for track (0 = track's own default)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
+  bool rays = true;         // the solve uses triangulate's rays.csv (markers seen by one camera; docs/method.md, "Constraints after the solve")
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
 
   void Register(OptionFields* fields);
