@@ -59,7 +59,7 @@ namespace {
 // lambda_j at the surface point s: the barycentric blend of its corners'
 // rows.
 double RaySiteWeight(const Eigen::SparseMatrix<double, Eigen::RowMajor>& weights,
-                const SurfacePoint& s, const MatX3i& F, int site) {
+                     const SurfacePoint& s, const MatX3i& F, int site) {
   double w = 0.0;
   for (int c = 0; c < 3; ++c) w += s.bary(c) * weights.coeff(F(s.face, c), site);
   return w;
@@ -119,6 +119,11 @@ std::vector<RayResidual> ApplyRayConstraints(
     throw InputError(fmt::format("ray constraints: {} sites but natural-neighbour weights over {}",
                                  num_sites, nn.weights.cols()));
   }
+  if (options.depth == "dataset" && static_cast<int>(site_motion.size()) != num_sites) {
+    throw InputError(fmt::format("ray constraints: depth \"dataset\" needs the motion at each of "
+                                 "the {} sites, {} given",
+                                 num_sites, site_motion.size()));
+  }
   std::vector<RayResidual> residuals(rays.size());
   // The constraints of each frame, by index into `rays`.
   std::map<int, std::vector<int>> by_frame;
@@ -166,7 +171,9 @@ std::vector<RayResidual> ApplyRayConstraints(
         const double keep = std::min(options.tolerance_mm, res.before_mm);
         Vec3 move = res.before_mm > 0 ? Vec3((q - p) * (1 - keep / res.before_mm))
                                       : Vec3::Zero();
-        if (options.depth == "dataset") move += DepthFromMotion(site_motion.at(ray.marker), ray.direction, move);
+        if (options.depth == "dataset") {
+          move += DepthFromMotion(site_motion[ray.marker], ray.direction, move);
+        }
         target_move.push_back(move);
       }
     }
@@ -187,8 +194,6 @@ std::vector<RayResidual> ApplyRayConstraints(
     const Eigen::MatrixXd delta =
         lu.isInvertible() ? Eigen::MatrixXd(lu.solve(rhs))
                           : Eigen::MatrixXd(A.completeOrthogonalDecomposition().solve(rhs));
-    std::vector<int> site_col(m);
-    for (int j = 0; j < m; ++j) site_col[j] = rays[active[j]].marker;
     for (int v = 0; v < nn.weights.rows(); ++v) {
       for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(nn.weights, v); it;
            ++it) {

@@ -46,6 +46,9 @@ void RunOptions::Register(OptionFields* fields) {
               "refine the rig from the helmet tags (false: use --calibration as it is)");
   fields->Add("export", &export_formats,
               "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
+  fields->Add("rays", &rays,
+              "the solve uses triangulate's rays.csv, the markers seen by one camera (docs/method.md, "
+              "\"Constraints after the solve\": on tracked footage they can cost accuracy)");
   fields->Add("fps", &fps,
               "frame rate of the mesh caches (frames/s; 0 = the video's own, 30 for an image "
               "sequence, which declares none)")
@@ -405,7 +408,7 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     // Markers seen by one camera constrain the solved mesh (docs/method.md,
     // "Constraints after the solve"), placed in head space by the head
     // poses.
-    const bool rays = fs::is_regular_file(Out("triangulate", "rays.csv"));
+    const bool rays = options_.rays && fs::is_regular_file(Out("triangulate", "rays.csv"));
     if (rays) {
       key.AddInput("rays", Out("triangulate", "rays.csv"));
       key.AddInput("head_from_helmet", Out("stabilize", "head_from_helmet.csv"));

@@ -70,5 +70,23 @@ TEST(CliErrorsTest, InputsThatAreNotFilesAreInputErrors) {
   fs::remove_all(dir);
 }
 
+// Rays are in helmet space: without the head poses that place them in head
+// space the solve refuses them, saying what is missing, and writes nothing.
+TEST(CliErrorsTest, RaysWithoutHeadPosesAreRefused) {
+  const fs::path dir = FreshTestDir("hmc_cli_rays", 1);
+  WriteSmallActor(dir, 1, 24, 20);
+  WriteFileAtomic(dir / "bundles.csv", "frame,marker,x,y,z\n");
+  WriteFileAtomic(dir / "rays.csv", "frame,marker,camera,ox,oy,oz,dx,dy,dz\n");
+  const CliResult r = RunHmc(fmt::format("solve --actor '{}' --bundles '{}' --rays '{}' --out '{}'",
+                                         (dir / "actor").string(), (dir / "bundles.csv").string(),
+                                         (dir / "rays.csv").string(), (dir / "out.pc2").string()),
+                             dir);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--head_from_helmet"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find((dir / "rays.csv").string()), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out.pc2"));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace hmc
