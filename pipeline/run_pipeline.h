@@ -37,7 +37,7 @@ struct RunOptions {
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
   DayMarkersOptions day;    // markers: the day's markers, passed to every stage that loads the actor
-  bool rays = true;         // the solve uses triangulate's rays.csv (markers seen by one camera; docs/method.md, "Constraints after the solve")
+  bool rays = false;        // the solve uses triangulate's rays.csv (markers seen by one camera; docs/method.md, "Constraints after the solve")
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
 
   void Register(OptionFields* fields);

@@ -60,7 +60,9 @@ class RunTest : public ::testing::Test {
   }
   static std::string RunArgs(const fs::path& shot, const fs::path& work) {
     const fs::path& d = *dir_;
-    return fmt::format("run --shot '{}' --actor '{}' --calibration '{}' --out '{}'", shot.string(),
+    // --rays true: the rays' path through the run (off by default) is tested too.
+    return fmt::format("run --shot '{}' --actor '{}' --calibration '{}' --out '{}' --rays true",
+                       shot.string(),
                        (d / "actor").string(), (shot / "calibration.yaml").string(),
                        work.string());
   }
