@@ -344,16 +344,8 @@ void ReviewWriter::WriteProxies() {
   const std::vector<int> params = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   std::vector<int64_t> bytes(n, 0);
   // Decoding the next frame runs beside the encoding of this one.
-  auto read_next = [&reader] {
-    auto frame = std::make_unique<FootageFrame>();
-    if (!reader.Next(frame.get())) frame.reset();
-    return frame;
-  };
-  std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
-  for (;;) {
-    std::unique_ptr<FootageFrame> frame = next.get();
-    if (!frame) break;
-    next = std::async(std::launch::async, read_next);
+  FootageReadAhead frames(&reader, false);
+  while (std::unique_ptr<FootageFrame> frame = frames.Next()) {
     ParallelFor(0, n, [&](int64_t camera) {
       const int c = static_cast<int>(camera);
       if (frame->images[c].empty()) return;
