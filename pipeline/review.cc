@@ -219,43 +219,34 @@ void ReviewWriter::ReadTracks() {
   }
 }
 
-// The dots' states beyond "named": flagged by stabilize (a bad track, at
-// the frames its residual is over the threshold: the report's warnings),
-// interpolated (stabilize could not fit the frame), rejected by the
-// triangulation (triangulation.csv rows not `ok`).
+// The dots' states beyond "named", from the report's warnings (which name
+// markers and frames): flagged by stabilize (a bad track, at the frames its
+// residual is over the threshold), rejected by the triangulation (its
+// dropped marker-frames); and interpolated (stabilize could not fit the
+// frame).
 void ReviewWriter::ReadStates() {
   const fs::path plots = Stage("report", "plots.json");
   if (Exists(plots)) report_data_ = ReadJson(plots);
   for (const auto& w : report_data_.value("warnings", nlohmann::json::array())) {
-    if (w.value("stage", std::string()) != "stabilize") continue;
+    const std::string stage = w.value("stage", std::string());
+    if (stage != "stabilize" && stage != "triangulate") continue;
+    const int state = stage == "stabilize" ? kFlagged : kRejected;
     for (const auto& m : w.value("markers", nlohmann::json::array())) {
       const int k = MarkerIndex(m.get<std::string>());
-      for (const auto& f : w.value("frames", nlohmann::json::array())) state_[{f.get<int>(), k}] = kFlagged;
+      for (const auto& f : w.value("frames", nlohmann::json::array())) {
+        int& s = state_[{f.get<int>(), k}];
+        s = std::max(s, state);  // rejected over flagged
+      }
     }
   }
   const fs::path stabilize = Stage("stabilize", "summary.json");
   if (Exists(stabilize)) {
     const nlohmann::json s = ReadJson(stabilize);
-    const nlohmann::json cs = s.value("report", nlohmann::json::object()).value("command_summary", nlohmann::json::object());
+    const nlohmann::json cs =
+        s.value("report", nlohmann::json::object()).value("command_summary", nlohmann::json::object());
     for (const auto& f : cs.value("interpolated_frames", nlohmann::json::array())) {
       interpolated_.insert(f.value("frame", 0));
     }
-  }
-  const fs::path tri = Stage("triangulate", "triangulation.csv");
-  if (Exists(tri)) {
-    const std::string text = ReadFile(tri);
-    bool header = true;
-    ForEachLine(text, [&](int line, std::string_view l) {
-      if (Trim(l).empty()) return;
-      if (header) {
-        header = false;
-        return;
-      }
-      const std::vector<std::string> f = SplitCsvRecord(l, tri, line);
-      int frame = 0;
-      if (f.size() < 3 || !ParseInt(f[0], &frame)) ThrowInputError(tri, line, "expected frame,marker,status,...");
-      if (f[2] != "ok") state_[{frame, MarkerIndex(f[1])}] = kRejected;
-    });
   }
 }
 
@@ -344,16 +335,8 @@ void ReviewWriter::WriteProxies() {
   const std::vector<int> params = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   std::vector<int64_t> bytes(n, 0);
   // Decoding the next frame runs beside the encoding of this one.
-  auto read_next = [&reader] {
-    auto frame = std::make_unique<FootageFrame>();
-    if (!reader.Next(frame.get())) frame.reset();
-    return frame;
-  };
-  std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
-  for (;;) {
-    std::unique_ptr<FootageFrame> frame = next.get();
-    if (!frame) break;
-    next = std::async(std::launch::async, read_next);
+  FootageReadAhead frames(&reader, false);
+  while (std::unique_ptr<FootageFrame> frame = frames.Next()) {
     ParallelFor(0, n, [&](int64_t camera) {
       const int c = static_cast<int>(camera);
       if (frame->images[c].empty()) return;
@@ -429,7 +412,7 @@ void ReviewWriter::WriteTopology() {
 }
 
 // One script per chunk of frames: per frame its tracks and bundles as
-// JSON, the meshes as one base64 binary (docs/formats.md, "Review").
+// JSON, the meshes as one base64 binary (docs/formats.md, "Review page").
 void ReviewWriter::WriteChunks() {
   const int chunk = options_.chunk_frames;
   const int num_chunks = (last_ - first_ + chunk) / chunk;

@@ -7,7 +7,7 @@
 // on demand: the mesh sequence in chunks of frames (int16 displacements
 // from the neutral, base64), the tracks with their state, the bundles
 // with their solve residual, the report's plots and warnings (formats:
-// docs/formats.md, "Review").
+// docs/formats.md, "Review page").
 #pragma once
 
 #include <cstdint>

@@ -11,6 +11,7 @@
 #include <map>
 #include <regex>
 #include <tuple>
+#include <utility>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -156,6 +157,51 @@ TEST_F(ReviewTest, ThePageWorksInARealBrowserAndItsFixesApply) {
     if (t.marker == rows[1].marker) renamed = (t.pixel - rows[0].pixel).norm() < 1e-3;
   }
   EXPECT_TRUE(renamed);
+}
+
+// Issue 48, item 6: every stage's warnings reach the report with their
+// markers and frames -- here the triangulation's dropped marker-frames,
+// against triangulation.csv read independently -- and no stage row of the
+// report is empty.
+TEST_F(ReviewTest, TheReportListsEveryDroppedMarkerFrameAndNoEmptyStageRow) {
+  const fs::path work = *dir_ / "work";
+  std::map<std::string, std::vector<int>> dropped;  // "marker status" -> frames
+  bool header = true;
+  for (const std::string& line : [&] {
+         std::vector<std::string> lines;
+         std::string text = ReadFile(work / "triangulate" / "triangulation.csv"), l;
+         for (size_t a = 0, b; a < text.size(); a = b + 1) {
+           b = text.find('\n', a);
+           if (b == std::string::npos) b = text.size();
+           lines.push_back(text.substr(a, b - a));
+         }
+         return lines;
+       }()) {
+    if (std::exchange(header, false) || line.empty()) continue;
+    const size_t c1 = line.find(','), c2 = line.find(',', c1 + 1), c3 = line.find(',', c2 + 1);
+    const std::string status = line.substr(c2 + 1, c3 - c2 - 1);
+    if (status != "ok") dropped[line.substr(c1 + 1, c2 - c1 - 1) + " " + status].push_back(std::stoi(line.substr(0, c1)));
+  }
+  std::map<std::string, std::vector<int>> listed;
+  const nlohmann::json plots = nlohmann::json::parse(ReadFile(work / "report" / "plots.json"));
+  for (const auto& w : plots["warnings"]) {
+    if (w["stage"] != "triangulate" || w["markers"].size() != 1) continue;
+    const std::string text = w["text"].get<std::string>();
+    const size_t open = text.find('('), close = text.find(')');
+    listed[w["markers"][0].get<std::string>() + " " + text.substr(open + 1, close - open - 1)] =
+        w["frames"].get<std::vector<int>>();
+  }
+  EXPECT_EQ(listed, dropped);
+  std::printf("%zu marker/reason lines of dropped marker-frames\n", dropped.size());
+  EXPECT_FALSE(plots["plots"].empty());
+  // Every stage row's summary cell (the fourth) holds something.
+  const std::string page = ReadFile(work / "report" / "report.html");
+  const std::regex row("<tr><td>([a-z]+)</td><td>[^<]*</td><td>[^<]*</td><td>(.*?)</td></tr>");
+  int rows = 0;
+  for (std::sregex_iterator it(page.begin(), page.end(), row), end; it != end; ++it, ++rows) {
+    EXPECT_FALSE((*it)[2].str().empty()) << "empty row: " << (*it)[1];
+  }
+  EXPECT_EQ(rows, 6);  // calibrate .. solve
 }
 
 // `absent` hides a marker in one camera from its frame on; one `rename` at

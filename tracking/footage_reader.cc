@@ -300,4 +300,25 @@ bool FootageReader::Next(FootageFrame* frame, const std::function<bool(int)>& wa
   }
 }
 
+FootageReadAhead::FootageReadAhead(FootageReader* reader, bool linearize)
+    : reader_(reader), linearize_(linearize), next_(std::async(std::launch::async, [this] { return Read(); })) {}
+
+FootageReadAhead::~FootageReadAhead() {
+  if (next_.valid()) next_.wait();
+}
+
+std::unique_ptr<FootageFrame> FootageReadAhead::Read() {
+  auto frame = std::make_unique<FootageFrame>();
+  if (!reader_->Next(frame.get())) return nullptr;
+  if (linearize_) reader_->Linearize(frame.get());
+  return frame;
+}
+
+std::unique_ptr<FootageFrame> FootageReadAhead::Next() {
+  if (!next_.valid()) return nullptr;
+  std::unique_ptr<FootageFrame> frame = next_.get();
+  if (frame) next_ = std::async(std::launch::async, [this] { return Read(); });
+  return frame;
+}
+
 }  // namespace hmc

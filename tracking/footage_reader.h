@@ -28,6 +28,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <memory>
 #include <string>
 #include <vector>
@@ -134,6 +135,23 @@ class FootageReader {
   struct Impl;
   static void ThrowIfGone(const Impl& d);
   std::unique_ptr<Impl> impl_;
+};
+
+// Reads a FootageReader's frames one ahead: the next frame is decoded (and
+// with `linearize`, Linearize'd) on another thread while the caller works
+// on the current one. Next() returns null after the last frame; what the
+// reader throws is thrown by Next().
+class FootageReadAhead {
+ public:
+  FootageReadAhead(FootageReader* reader, bool linearize);
+  ~FootageReadAhead();  // waits for the frame being read
+  std::unique_ptr<FootageFrame> Next();
+
+ private:
+  std::unique_ptr<FootageFrame> Read();
+  FootageReader* reader_;
+  bool linearize_;
+  std::future<std::unique_ptr<FootageFrame>> next_;
 };
 
 // What an .mp4 or .mov video says of its values' encoding (its colr box's

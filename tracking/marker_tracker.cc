@@ -380,16 +380,9 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
                    &detection_of[c], &out[c].vacant);
   }
   StereoCheck(detections, &detection_of, &out);
-  std::vector<std::vector<DotDetection>> fixed;  // the detections with the fixes' added points
-  const std::vector<std::vector<DotDetection>>& dots = fixes ? fixed : detections;
-  if (fixes) {
-    fixed = detections;
-    if (outcome) outcome->assign(num_cameras, {});
-    for (int c = 0; c < num_cameras; ++c) {
-      const FixOutcome o = ApplyFixes(c, (*fixes)[c], &fixed[c], &detection_of[c]);
-      if (outcome) (*outcome)[c] = o;
-    }
-  }
+  std::vector<std::vector<DotDetection>> fixed;
+  const std::vector<std::vector<DotDetection>>& dots = ApplyFrameFixes(
+      detections, std::vector<bool>(num_cameras, true), fixes, outcome, &fixed, &detection_of);
   for (int c = 0; c < num_cameras; ++c) {
     out[c].detections = static_cast<int>(detections[c].size());
     for (int k = 0; k < num_markers; ++k) {
@@ -485,22 +478,11 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     }
   }
   StereoCheck(detections, &detection_of, &out);
-  std::vector<std::vector<DotDetection>> fixed;  // the detections with the fixes' added points
-  const std::vector<std::vector<DotDetection>>& dots = fixes ? fixed : detections;
-  if (fixes) {
-    fixed = detections;
-    if (outcome) outcome->assign(num_cameras, {});
-  }
+  std::vector<std::vector<DotDetection>> fixed;
+  const std::vector<std::vector<DotDetection>>& dots =
+      ApplyFrameFixes(detections, present, fixes, outcome, &fixed, &detection_of);
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) continue;
-    if (fixes) {
-      const FixOutcome o = ApplyFixes(c, (*fixes)[c], &fixed[c], &detection_of[c]);
-      if (outcome) (*outcome)[c] = o;
-    } else {
-      for (int k = 0; k < num_markers; ++k) {
-        if (absent_[c][k]) detection_of[c][k] = -1;
-      }
-    }
     out[c].detections = static_cast<int>(detections[c].size());
     for (int k = 0; k < num_markers; ++k) {
       DotState& s = state_[c][k];
@@ -546,6 +528,33 @@ int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotD
     if (best >= 0 || fix.action == TrackFixAction::kMove) return best;
   }
   return fix.marker >= 0 ? detection_of[fix.marker] : -1;
+}
+
+const std::vector<std::vector<DotDetection>>& MarkerTracker::ApplyFrameFixes(
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present,
+    const std::vector<std::vector<TrackerFix>>* fixes, std::vector<FixOutcome>* outcome,
+    std::vector<std::vector<DotDetection>>* storage, std::vector<std::vector<int>>* detection_of) {
+  const int num_cameras = static_cast<int>(detections.size());
+  if (outcome) outcome->assign(num_cameras, {});
+  if (!fixes) {
+    for (int c = 0; c < num_cameras; ++c) {
+      if (!present[c]) continue;
+      for (size_t k = 0; k < absent_[c].size(); ++k) {
+        if (absent_[c][k]) (*detection_of)[c][k] = -1;
+      }
+    }
+    return detections;
+  }
+  *storage = detections;
+  for (int c = 0; c < num_cameras; ++c) {
+    if (!present[c]) {  // the camera's image is missing: its fixes found no dot
+      for (size_t i = 0; outcome && i < (*fixes)[c].size(); ++i) (*outcome)[c].unmatched.push_back(static_cast<int>(i));
+      continue;
+    }
+    const FixOutcome o = ApplyFixes(c, (*fixes)[c], &(*storage)[c], &(*detection_of)[c]);
+    if (outcome) (*outcome)[c] = o;
+  }
+  return *storage;
 }
 
 FixOutcome MarkerTracker::ApplyFixes(int c, const std::vector<TrackerFix>& fixes,

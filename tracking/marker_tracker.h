@@ -232,6 +232,13 @@ class MarkerTracker {
   // absent marker is unnamed.
   FixOutcome ApplyFixes(int c, const std::vector<TrackerFix>& fixes,
                         std::vector<DotDetection>* detections, std::vector<int>* detection_of);
+  // ApplyFixes for every camera present (without fixes: only the absent
+  // markers unnamed). Returns the detections the names point into: the
+  // frame's, or `storage` holding them with the fixes' added points.
+  const std::vector<std::vector<DotDetection>>& ApplyFrameFixes(
+      const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present,
+      const std::vector<std::vector<TrackerFix>>* fixes, std::vector<FixOutcome>* outcome,
+      std::vector<std::vector<DotDetection>>* storage, std::vector<std::vector<int>>* detection_of);
   // The detection a fix points at: the nearest to its pixel within the
   // dot's size (at least 3 px), else the one its marker holds; -1: none.
   int FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <future>
 #include <limits>
 #include <map>
 #include <set>
@@ -254,17 +253,8 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   std::vector<std::vector<int>> proxy_frames;  // per camera: the frames with a proxy
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
-  auto read_next = [&reader] {
-    auto frame = std::make_unique<FootageFrame>();
-    if (!reader.Next(frame.get())) return std::unique_ptr<FootageFrame>();
-    reader.Linearize(frame.get());
-    return frame;
-  };
-  std::future<std::unique_ptr<FootageFrame>> next = std::async(std::launch::async, read_next);
-  for (;;) {
-    std::unique_ptr<FootageFrame> frame = next.get();
-    if (!frame) break;
-    next = std::async(std::launch::async, read_next);
+  FootageReadAhead frames(&reader, true);
+  while (std::unique_ptr<FootageFrame> frame = frames.Next()) {
     progress.Advance();
     if (frame->frame < options.reference_frame) continue;
     std::vector<bool> present(num_cameras);
