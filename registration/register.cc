@@ -61,11 +61,13 @@ std::string RegisterOutput::BriefReport() const {
   const double median = offsets.empty() ? 0.0 : offsets[offsets.size() / 2];
   return fmt::format(
       "{} markers registered from {} frames in {} passes (median offset {:.2f} mm, pose "
-      "correction {:.3f} mm); not found: {}; loose: {}; off the surface: {}",
-      registered.size(), frames, passes, median, pose_correction_mm,
+      "correction {:.3f} mm, {} renamed); not found: {}; loose: {}; off the surface: {}; "
+      "unexplained: {}",
+      registered.size(), frames, passes, median, pose_correction_mm, renamed,
       not_found.empty() ? "none" : fmt::format("{}", fmt::join(not_found, " ")),
       loose.empty() ? "none" : fmt::format("{}", fmt::join(loose, " ")),
-      off_surface.empty() ? "none" : fmt::format("{}", fmt::join(off_surface, " ")));
+      off_surface.empty() ? "none" : fmt::format("{}", fmt::join(off_surface, " ")),
+      unexplained.empty() ? "none" : fmt::format("{}", fmt::join(unexplained, " ")));
 }
 
 namespace {
@@ -129,7 +131,8 @@ Rigid3 FitToSurface(const TriMesh& mesh, const MatX3d& normals, const std::vecto
 // marker points; a dot painted nearer a neighbour's point than its own (the
 // lips' markers lie 2.6-5 mm apart) may get that name while the neighbour's
 // goes unnamed or to this one's dot. A dot no marker lies within
-// paint_offset_mm of keeps the tracker's name.
+// paint_offset_mm of (none left free) is a dot no marker explains:
+// reported, and not a marker of the day.
 void RenameByPaintPrior(const Actor& package, const RegisterOptions& options,
                         RegisterOutput* out) {
   const int rows = static_cast<int>(out->registered.size());
@@ -148,9 +151,21 @@ void RenameByPaintPrior(const Actor& package, const RegisterOptions& options,
   }
   const std::vector<int> col = SolveGatedAssignment(rows, cols, edges, std::vector<double>(rows, gate));
   std::set<std::string> named;
+  std::vector<char> keep(rows, 1);
   for (int i = 0; i < rows; ++i) {
     const int k = col[i];
-    if (k < 0 || package.markers[k].name == out->registered[i].name) continue;
+    if (k < 0) {
+      // Farther than paint_offset_mm from every marker's point left free:
+      // a dot no marker explains (an extra dot, or one named wrongly).
+      keep[i] = 0;
+      out->unexplained.push_back(out->registered[i].name);
+      spdlog::info("register: the dot named {} is {:.2f} mm from its marker's point and no "
+                   "free marker lies within {} mm of it: not a marker of the day",
+                   out->registered[i].name, out->registered[i].offset.norm(),
+                   options.paint_offset_mm);
+      continue;
+    }
+    if (package.markers[k].name == out->registered[i].name) continue;
     const std::string was = out->registered[i].name;
     out->registered[i].name = package.markers[k].name;
     out->registered[i].offset = out->registered[i].position - points[k];
@@ -165,14 +180,18 @@ void RenameByPaintPrior(const Actor& package, const RegisterOptions& options,
   // Package order, and the not-found list of the names now unused.
   std::vector<int> order(rows);
   for (int i = 0; i < rows; ++i) order[i] = package.FindMarker(out->registered[i].name);
-  std::vector<int> index(rows);
-  for (int i = 0; i < rows; ++i) index[i] = i;
+  std::vector<int> index;
+  for (int i = 0; i < rows; ++i) {
+    if (keep[i]) index.push_back(i);
+  }
   std::sort(index.begin(), index.end(), [&](int a, int b) { return order[a] < order[b]; });
   RegisterOutput sorted = *out;
-  for (int i = 0; i < rows; ++i) {
-    sorted.registered[i] = out->registered[index[i]];
-    sorted.markers[i] = out->markers[index[i]];
-    named.insert(sorted.registered[i].name);
+  sorted.registered.clear();
+  sorted.markers.clear();
+  for (const int i : index) {
+    sorted.registered.push_back(out->registered[i]);
+    sorted.markers.push_back(out->markers[i]);
+    named.insert(out->registered[i].name);
   }
   sorted.not_found.clear();
   for (const Marker& m : package.markers) {
@@ -332,6 +351,8 @@ std::string RegisterReportJson(const RegisterOutput& output) {
                                  {"not_found", output.not_found},
                                  {"loose", output.loose},
                                  {"off_surface", output.off_surface},
+                                 {"unexplained", output.unexplained},
+                                 {"renamed", output.renamed},
                                  {"warnings", output.warnings},
                                  {"markers", markers}};
   return report.dump(2) + "\n";

@@ -62,6 +62,10 @@ struct RegisterOutput {
   std::vector<std::string> not_found;      // not painted (or never seen)
   std::vector<std::string> loose;          // moving against the surface
   std::vector<std::string> off_surface;    // mean off the surface
+  // Dots no marker explains: farther than paint_offset_mm from every
+  // marker's point left free (named by the tracker as listed; an extra
+  // dot, or a wrong name); not markers of the day.
+  std::vector<std::string> unexplained;
   int frames = 0;
   int passes = 0;
   double pose_correction_mm = 0;  // how far step 3 moved the furthest marker (mm)
