@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/mesh_sequence.h"
 #include "core/obj_io.h"
+#include "tracking/video_timecode.h"
 
 namespace hmc {
 namespace {
@@ -25,6 +26,7 @@ struct ConvertArgs {
   int start_frame = 1;
   bool start_frame_given = false;
   int precision = 9;     // significant digits of OBJ frames
+  std::string timecode;  // the footage's frame 1 (SMPTE); "" keeps the input's
 };
 
 const char* FormatName(SequenceFormat format) {
@@ -86,6 +88,13 @@ int RunConvert(const ConvertArgs& args) {
                  args.in, seq.fps);
   }
 
+  if (!args.timecode.empty()) {
+    seq.timecode = AdvanceTimecode(args.timecode, seq.fps, seq.start_frame - 1, "--timecode");
+  }
+  if (!seq.timecode.empty() && out_format != SequenceFormat::kUsda) {
+    spdlog::info("convert: {} has no place for the timecode {} (only .usda keeps it)", args.out,
+                 seq.timecode);
+  }
   WriteMeshSequence(args.out, seq, args.precision);
   spdlog::info("convert: {} ({}) -> {} ({}): {} frames {}..{} of {} vertices, "
                "{} triangles, {} fps",
@@ -122,6 +131,10 @@ HMC_COMMAND(Convert, "", "convert",
   CLI::Option* start = app->add_option(
       "--start_frame", args->start_frame,
       "Number of the first frame; overrides the input's");
+  app->add_option("--timecode", args->timecode,
+                  "SMPTE timecode (HH:MM:SS:FF, ';' for drop-frame) of the footage's frame 1, "
+                  "as its video states it: the output (.usda) carries the timecode of its own "
+                  "first frame; default: the input's (.usda), else none");
   app->add_option("--precision", args->precision,
                   "Significant digits of OBJ frame coordinates (17: exact "
                   "doubles)")

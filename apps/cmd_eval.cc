@@ -1,5 +1,5 @@
 // `hmc eval --actor DIR --truth T --recon R [--bundles bundles.csv]
-// [--out DIR] [--frames 1,10,...] [--json]`: how far a reconstruction is
+// [--rays rays.csv] [--out DIR] [--frames 1,10,...] [--json]`: how far a reconstruction is
 // from the truth, per frame and overall, over the face region and over all
 // vertices (core/mesh_metrics.h): mean, RMS, 95th percentile and max vertex
 // error, the bundle residual and the detail error. T and R: any mesh-sequence
@@ -22,6 +22,7 @@
 #include "core/file_util.h"
 #include "core/logging.h"
 #include "eval/run_eval.h"
+#include "triangulation/triangulate.h"
 
 namespace hmc {
 namespace {
@@ -31,6 +32,7 @@ struct EvalCommand {
   std::string truth;
   std::string recon;
   std::string bundles;
+  std::string rays;
   std::string out;
   std::vector<int> frames;
   bool json = false;
@@ -70,13 +72,17 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
   RequireValid(cmd.options, "eval");
   PrepareOutputPaths({{cmd.out, "--out", true}},
                      {{cmd.actor_dir, "--actor"}, {cmd.truth, "--truth"}, {cmd.recon, "--recon"},
-                      {cmd.bundles, "--bundles"}});
+                      {cmd.bundles, "--bundles"}, {cmd.rays, "--rays"}});
   const Actor actor = LoadActor(cmd.actor_dir);
   EvalInput input;
   input.actor = &actor;
   input.truth = cmd.truth;
   input.recon = cmd.recon;
   input.bundles = cmd.bundles;
+  if (!cmd.rays.empty()) {
+    for (const MonoRay& ray : ReadRaysCsv(cmd.rays)) input.at_markers.push_back({ray.frame, ray.marker});
+    input.at_markers_file = cmd.rays;
+  }
   EvalOutput output;
   if (cmd.out.empty()) {
     output = RunEval(input, cmd.options);
@@ -95,6 +101,16 @@ int Run(EvalCommand& cmd, OptionBinding& binding) {
   } else {
     PrintTable(output, actor.NumVertices(),
                cmd.options.metrics.face_radius_mm);
+    if (output.report.contains("at_markers")) {
+      const nlohmann::json& m = output.report["at_markers"];
+      fmt::print(
+          "at the {} marker-frames of {} ({} frames): mean {:.4f} mm, max {:.4f}; face within "
+          "{} mm of them {:.4f}, away {:.4f}; other markers {:.4f}\n",
+          m["marker_frames"].get<int>(), cmd.rays, m["frames"].get<int>(),
+          m["mean_mm"].get<double>(), m["max_mm"].get<double>(), m["radius_mm"].get<double>(),
+          m["near_mean_mm"].get<double>(), m["away_mean_mm"].get<double>(),
+          m["other_markers_mean_mm"].get<double>());
+    }
   }
   spdlog::info("eval: {}", output.BriefReport());
   return 0;
@@ -118,6 +134,10 @@ HMC_COMMAND(Eval, "", "eval",
   app->add_option("--bundles", cmd->bundles,
                   "bundles.csv: measure the bundle residual against these "
                   "instead of the truth's marker points")
+      ->check(CLI::ExistingFile);
+  app->add_option("--rays", cmd->rays,
+                  "rays.csv (hmc triangulate): also the error at the markers seen by one camera, "
+                  "and near and away from them in their frames (\"at_markers\" in the JSON)")
       ->check(CLI::ExistingFile);
   app->add_option("--out", cmd->out,
                   "Folder for eval.json, per_frame.csv, UV error maps (EXR) "

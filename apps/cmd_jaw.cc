@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/command.h"
+#include "core/day_markers.h"
 #include "core/actor.h"
 #include "core/actor_cache.h"
 #include "core/frame_data.h"
@@ -46,7 +47,7 @@ HMC_COMMAND(Jaw, "", "jaw",
                         SideFile(stem.string() + "_summary.json", "jaw")},
                        {{*bundles, "--bundles"}, {*actor_dir, "--actor"}, {*truth, "--truth"}});
     StageTimer timer("jaw");
-    const std::shared_ptr<const Actor> loaded = LoadActorShared(*actor_dir);
+    const std::shared_ptr<const Actor> loaded = LoadActorForDay(*actor_dir, options->day.markers);
     const Actor& actor = *loaded;
     std::vector<BundleFrame> frames = ReadBundlesCsv(*bundles);
     // A frame lost upstream is fitted as a bad frame: interpolated, flagged.

@@ -1,6 +1,6 @@
 // `hmc run --shot SHOT --actor DIR --calibration CAL --out WORK [--cam0 V]
 // [--cam1 V] [--offset1 N] [--frames A:B] [--reference_frame N] [--fps F]
-// [--from STAGE] [--to STAGE] [--config FILE]`: footage to mesh in
+// [--from STAGE] [--to STAGE] [--fixes track_fixes.csv] [--config FILE]`: footage to mesh in
 // one command (pipeline/run_pipeline.h, docs/pipeline.md). Each stage runs
 // as its own hmc command on the previous stage's folder of WORK, so any
 // stage can be re-run alone; complete stages are kept.
@@ -36,6 +36,10 @@ HMC_COMMAND(Run, "", "run",
   app->add_option("--out", input->out, "Workspace folder (one sub-folder per stage)")
       ->required()
       ->group(data);
+  app->add_option("--fixes", input->fixes,
+                  "track_fixes.csv from hmc review: the track stage applies them (with --from "
+                  "track, every later stage is redone)")
+      ->group(data);
   OptionFields fields;
   options->Register(&fields);
   // --config: the run config (configs/run.yaml): `run:` holds these
@@ -67,7 +71,8 @@ HMC_COMMAND(Run, "", "run",
                        {{input->shot, "--shot"},
                         {input->actor, "--actor"},
                         {input->calibration, "--calibration"},
-                        {input->config, "--config"}});
+                        {input->config, "--config"},
+                        {input->fixes, "--fixes"}});
     StageTimer timer("run");
     // Every stage loads the actor; parse it once for the run (each stage
     // still reads and hashes the files: core/actor_cache.h).

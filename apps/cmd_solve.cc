@@ -13,6 +13,20 @@
 // never writes into the actor package.
 // Writes options_used.yaml (with the method) next to OUT.
 //
+// `--rays RAYS --head_from_helmet POSES [--calibration CAL]`: the markers
+// seen by one camera (triangulate's rays.csv, helmet space), taken to head
+// space by the stabilize stage's head poses, constrain the solved meshes
+// after the blend (blending/ray_constraints.h; docs/method.md, "Constraints
+// after the solve"); the calibration, when given, checks the rays' camera
+// names. The diagnostics give each ray's distance before and after.
+//
+// `--weights weights.csv`, `--curves curves.csv`, `--unit_rig FILE.usda`:
+// the actor's units fitted to each solved mesh (blending/unit_curves.h;
+// docs/method.md, "Animation curves"), written as a per-frame table, as
+// per-channel curves and as a USD BlendShape rig with time-sampled weights
+// (docs/formats.md, "Unit weights and curves"); the diagnostics give how
+// closely the rig driven by them reproduces the solved meshes.
+//
 // Frames run from the first to the last frame number of bundles.csv (a gap
 // of more than input.max_frame_gap missing frames is an input error); a
 // frame without rows, with too few bundles, without a jaw pose (when --jaw
@@ -23,23 +37,30 @@
 // the diagnostics, dropped from its frame. Unknown marker names are
 // ignored with one warning (docs/reliability.md).
 #include <algorithm>
+#include <map>
 #include <memory>
 #include <string>
+#include <unordered_map>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "apps/command.h"
+#include "core/day_markers.h"
 #include "blending/lgi_solver.h"
+#include "blending/ray_constraints.h"
 #include "blending/solve_index_cache.h"
 #include "blending/solve_method.h"
+#include "blending/unit_curves.h"
 #include "core/actor.h"
 #include "core/actor_cache.h"
+#include "core/calibration.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
 #include "core/logging.h"
 #include "core/mesh_sequence.h"
 #include "core/obj_io.h"
+#include "triangulation/triangulate.h"
 
 namespace hmc {
 namespace {
@@ -49,14 +70,18 @@ struct SolveCommandOptions {
                                   // blendshape-bounded | interp | lgi-rbf
   MethodOptions methods;
   SequenceInputOptions input;
+  RayConstraintOptions rays;
+  DayMarkersOptions day;  // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields) {
+    day.Register(fields);
     fields->Add("method", &method,
                 "solve method: " + SolveMethodList());
     methods.Register(fields);
     input.Register(fields);
+    rays.Register(fields);
   }
-  bool Check() const { return methods.Check() && input.Check(); }
+  bool Check() const { return methods.Check() && input.Check() && rays.Check(); }
 };
 
 struct SolveCommand {
@@ -66,6 +91,12 @@ struct SolveCommand {
   std::string out;
   std::string diagnostics_file;
   std::string topology_file;
+  std::string rays_file;
+  std::string calibration_file;
+  std::string poses_file;
+  std::string weights_file;
+  std::string curves_file;
+  std::string unit_rig_file;
   bool no_cache_write = false;
   double fps = 30.0;
   SolveCommandOptions options;
@@ -119,13 +150,83 @@ nlohmann::json FrameDiagnostics(const Actor& actor, const FrameSolve& f,
           {"bundles", bundles}};
 }
 
+std::vector<MatX3d> ShapeDisplacements(const Actor& actor) {
+  std::vector<MatX3d> out;
+  for (const Shape& shape : actor.shapes) out.push_back(shape.displacement);
+  return out;
+}
+
+// rays.csv's rays (helmet space) as constraints in head space: x_head =
+// head_from_helmet * x_helmet for the ray's frame. Rays of frames outside
+// the sequence or without a head pose, and of markers the actor does not
+// have, are left out with a warning each kind.
+std::vector<RayConstraint> HeadSpaceRays(const SolveCommand& cmd, const Actor& actor,
+                                         const DenseSequence& input) {
+  const std::vector<MonoRay> rays = ReadRaysCsv(cmd.rays_file);
+  std::map<int, Rigid3> poses;
+  for (const PoseFrame& p : ReadPosesCsv(cmd.poses_file)) poses[p.frame] = p.pose;
+  if (!cmd.calibration_file.empty()) {
+    const HelmetRig rig = ReadCalibration(cmd.calibration_file);
+    for (const MonoRay& ray : rays) {
+      if (std::none_of(rig.cameras.begin(), rig.cameras.end(),
+                       [&](const HelmetCamera& c) { return c.name == ray.camera; })) {
+        ThrowInputError(cmd.rays_file, 0, "frame {}, marker {}: camera \"{}\" is not in {}",
+                        ray.frame, ray.marker, ray.camera, cmd.calibration_file);
+      }
+    }
+  }
+  std::unordered_map<std::string, int> marker_index;
+  for (size_t k = 0; k < actor.markers.size(); ++k) {
+    marker_index[actor.markers[k].name] = static_cast<int>(k);
+  }
+  const int num_frames = static_cast<int>(input.frames.size());
+  int outside = 0, no_pose = 0, unknown = 0;
+  std::vector<RayConstraint> out;
+  for (const MonoRay& ray : rays) {
+    const int f = ray.frame - input.first_frame;
+    const auto marker = marker_index.find(ray.marker);
+    const auto pose = poses.find(ray.frame);
+    if (f < 0 || f >= num_frames) {
+      ++outside;
+    } else if (marker == marker_index.end()) {
+      ++unknown;
+    } else if (pose == poses.end()) {
+      ++no_pose;
+    } else {
+      out.push_back({f, marker->second, ray.camera, pose->second * ray.origin_in_helmet,
+                     pose->second.linear() * ray.direction_in_helmet});
+    }
+  }
+  if (outside) spdlog::warn("{}: {} rays of frames outside the bundles' left out", cmd.rays_file, outside);
+  if (unknown) spdlog::warn("{}: {} rays of markers the actor does not have left out", cmd.rays_file, unknown);
+  if (no_pose) {
+    spdlog::warn("{}: {} rays of frames without a pose in {} left out", cmd.rays_file, no_pose,
+                 cmd.poses_file);
+  }
+  return out;
+}
+
 // Writes the diagnostics file (docs/formats.md, "Solve diagnostics"): the
 // header fields, then the frames streamed one at a time, one per line. As
 // one nlohmann::json the document took about 6x its file size in memory
 // (4.9 GB peak for 2,000 frames of a small actor, issue 22).
+// rays: empty without --rays, else the header's "rays" summary and, per
+// frame, the list of its rays.
+struct RayDiagnostics {
+  nlohmann::json summary;
+  std::vector<nlohmann::json> frames;
+};
+
+// The unit fit's header entry and per-frame residuals (null without one).
+struct UnitDiagnostics {
+  nlohmann::json summary;
+  std::vector<double> frame_mean_mm;
+};
+
 void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
                       const std::string& method, const LgiModel* model,
-                      const SolveResult& result, const DenseSequence& input) {
+                      const SolveResult& result, const DenseSequence& input,
+                      const RayDiagnostics& rays, const UnitDiagnostics& units) {
   const SolveSummary& s = result.summary;
   nlohmann::json index = nullptr;
   if (model) {
@@ -147,7 +248,9 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
                                   {"bundles_filled", s.bundles_filled},
                                   {"outlier_bundles", input.num_outliers},
                                   {"unknown_marker_rows", input.unknown_rows},
-                                  {"max_projection_mm", s.max_projection}}}};
+                                  {"max_projection_mm", s.max_projection}}},
+                                {"rays", rays.summary},
+                                {"unit_fit", units.summary}};
   WriteFileAtomic(path, [&](std::ostream& out) {
     out << "{\n";
     for (const auto& [key, value] : head.items()) {
@@ -155,8 +258,10 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
     }
     out << " \"frames\": [";
     for (size_t i = 0; i < result.frames.size(); ++i) {
-      out << (i ? ",\n  " : "\n  ")
-          << FrameDiagnostics(actor, result.frames[i], input.outliers[i]).dump();
+      nlohmann::json frame = FrameDiagnostics(actor, result.frames[i], input.outliers[i]);
+      if (!rays.frames.empty()) frame["rays"] = rays.frames[i];
+      if (!units.frame_mean_mm.empty()) frame["unit_fit_mean_mm"] = units.frame_mean_mm[i];
+      out << (i ? ",\n  " : "\n  ") << frame.dump();
     }
     out << "\n ]\n}\n";
   });
@@ -176,15 +281,27 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   PrepareOutputPaths({{cmd.out, "--out", format == SequenceFormat::kObjFolder},
                       SideFile(parent / "options_used.yaml", "solve"),
                       {cmd.diagnostics_file, "--diagnostics"},
-                      {cmd.topology_file, "--topology"}},
+                      {cmd.topology_file, "--topology"},
+                      {cmd.weights_file, "--weights"},
+                      {cmd.curves_file, "--curves"},
+                      {cmd.unit_rig_file, "--unit_rig"}},
                      {{cmd.actor_dir, "--actor"},
                       {cmd.bundles_file, "--bundles"},
-                      {cmd.jaw_file, "--jaw"}});
-  const std::shared_ptr<const Actor> loaded = LoadActorShared(cmd.actor_dir);
+                      {cmd.jaw_file, "--jaw"},
+                      {cmd.rays_file, "--rays"},
+                      {cmd.calibration_file, "--calibration"},
+                      {cmd.poses_file, "--head_from_helmet"}});
+  if (!cmd.rays_file.empty() && cmd.poses_file.empty()) {
+    throw InputError(fmt::format(
+        "--rays {}: the rays are in helmet space; --head_from_helmet (the stabilize stage's "
+        "head_from_helmet.csv) is needed to place them in head space",
+        cmd.rays_file));
+  }
+  const std::shared_ptr<const Actor> loaded = LoadActorForDay(cmd.actor_dir, cmd.options.day.markers);
   const Actor& actor = *loaded;
   // The file's rows (a map per frame) live only until the dense sequence
   // is made: a long shot does not hold them through the solve.
-  const DenseSequence input = [&] {
+  DenseSequence input = [&] {
     const std::vector<BundleFrame> rows = ReadBundlesCsv(cmd.bundles_file);
     if (rows.empty()) {
       ThrowInputError(cmd.bundles_file, 0, "no frames in the bundles file");
@@ -212,6 +329,9 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   MethodSolvers solvers(actor, cmd.options.methods,
                         cmd.no_cache_write ? IndexCacheWrite::kNone
                                            : IndexCacheWrite::kUserCache);
+  solvers.Prepare(cmd.options.method);
+  DropBundlesBeyondReach(solvers.data(), cmd.options.input.outlier_margin_mm,
+                         cmd.bundles_file, &input);
   SolveResult result =
       solvers.Solve(cmd.options.method, input.frames, input.jaw,
                     input.frame_errors);
@@ -219,6 +339,71 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
     ThrowInputError(cmd.bundles_file, 0,
                     "no frame could be solved (frame {}: {}); nothing written",
                     result.frames.front().frame, result.frames.front().reason);
+  }
+
+  RayDiagnostics ray_diagnostics;
+  if (!cmd.rays_file.empty()) {
+    const std::vector<RayConstraint> rays = HeadSpaceRays(cmd, actor, input);
+    // The sewing's weights: the lgi model's (built or loaded for methods
+    // that do not use it).
+    if (!solvers.lgi_model()) solvers.Prepare("lgi");
+    const LgiModel& model = *solvers.lgi_model();
+    const size_t num_frames = result.meshes.size();
+    std::vector<std::vector<char>> observed(num_frames,
+                                            std::vector<char>(actor.markers.size(), 0));
+    std::vector<char> frame_ok(num_frames, 0);
+    for (size_t f = 0; f < num_frames; ++f) {
+      frame_ok[f] = result.frames[f].ok;
+      for (size_t k = 0; k < actor.markers.size(); ++k) {
+        observed[f][k] = input.frames[f].bundles.count(actor.markers[k].name) > 0;
+      }
+    }
+    const std::vector<RayResidual> residuals =
+        ApplyRayConstraints(rays, model.data.sites, actor.neutral.F, model.nn, observed,
+                            frame_ok, cmd.options.rays, &result.meshes,
+                            cmd.options.rays.depth == "dataset"
+                                ? SiteMotionCovariances(ShapeDisplacements(actor), model.data.sites,
+                                                        actor.neutral.F)
+                                : std::vector<Mat3>());
+    const RayConstraintSummary summary = SummarizeRays(residuals);
+    spdlog::info("solve: rays: {}", summary.BriefReport());
+    ray_diagnostics.summary = {{"rays", summary.rays},
+                               {"applied", summary.applied},
+                               {"observed", summary.observed},
+                               {"bad_frame", summary.bad_frame},
+                               {"behind", summary.behind},
+                               {"too_far", summary.too_far},
+                               {"mean_before_mm", summary.mean_before_mm},
+                               {"max_before_mm", summary.max_before_mm},
+                               {"mean_after_mm", summary.mean_after_mm},
+                               {"max_after_mm", summary.max_after_mm}};
+    ray_diagnostics.frames.assign(num_frames, nlohmann::json::array());
+    for (size_t r = 0; r < rays.size(); ++r) {
+      ray_diagnostics.frames[rays[r].frame_index].push_back(
+          {{"marker", actor.markers[rays[r].marker].name},
+           {"camera", rays[r].camera},
+           {"status", RayStatusName(residuals[r].status)},
+           {"before_mm", residuals[r].before_mm},
+           {"after_mm", residuals[r].after_mm}});
+    }
+  }
+
+  UnitDiagnostics unit_diagnostics;
+  if (!cmd.weights_file.empty() || !cmd.curves_file.empty() || !cmd.unit_rig_file.empty()) {
+    const UnitRig rig = UnitRigFromActor(actor);
+    const UnitFit fit = FitUnitWeights(rig, actor, result.meshes, input.jaw);
+    const UnitAnimation animation =
+        MakeUnitAnimation(rig, actor, fit, input.jaw, input.first_frame, cmd.fps);
+    if (!cmd.weights_file.empty()) WriteUnitWeightsCsv(cmd.weights_file, animation);
+    if (!cmd.curves_file.empty()) WriteUnitCurvesCsv(cmd.curves_file, animation);
+    if (!cmd.unit_rig_file.empty()) WriteUnitRigUsda(cmd.unit_rig_file, rig, actor, animation, input.jaw);
+    spdlog::info("solve: {} units fitted to the solved meshes: the rig driven by the weights is "
+                 "{:.4f} mm from them (mean; worst frame {:.4f})",
+                 rig.names.size(), fit.mean_mm_all, fit.max_frame_mean_mm);
+    unit_diagnostics.summary = {{"units", rig.names.size()},
+                                {"mean_mm", fit.mean_mm_all},
+                                {"max_frame_mean_mm", fit.max_frame_mean_mm}};
+    unit_diagnostics.frame_mean_mm = fit.mean_mm;
   }
 
   MeshSequence seq;
@@ -231,7 +416,7 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   if (!cmd.topology_file.empty()) WriteObj(cmd.topology_file, actor.neutral);
   if (!cmd.diagnostics_file.empty()) {
     WriteDiagnostics(cmd.diagnostics_file, actor, cmd.options.method, solvers.lgi_model(), result,
-                     input);
+                     input, ray_diagnostics, unit_diagnostics);
   }
   spdlog::info("solve ({}): {}", cmd.options.method,
                result.summary.BriefReport());
@@ -262,6 +447,23 @@ HMC_COMMAND(Solve, "", "solve",
   app->add_option("--topology", cmd->topology_file,
                   "Also write the meshes' topology (the actor's neutral, mm, with UVs) as "
                   "an OBJ: the mesh a .pc2/.mdd is applied to in Blender (docs/blender.md)");
+  app->add_option("--rays", cmd->rays_file,
+                  "rays.csv (hmc triangulate): markers seen by one camera, whose surface point the "
+                  "solved mesh is then moved onto (docs/method.md, \"Constraints after the solve\")")
+      ->check(CLI::ExistingFile);
+  app->add_option("--head_from_helmet", cmd->poses_file,
+                  "head_from_helmet.csv (hmc stabilize): places the rays in head space")
+      ->check(CLI::ExistingFile);
+  app->add_option("--calibration", cmd->calibration_file,
+                  "The rig's calibration: checks the rays' camera names")
+      ->check(CLI::ExistingFile);
+  app->add_option("--weights", cmd->weights_file,
+                  "weights.csv: per frame, the weights of the actor's units fitted to the solved "
+                  "mesh (and the jaw pose; docs/formats.md, \"Unit weights and curves\")");
+  app->add_option("--curves", cmd->curves_file,
+                  "curves.csv: the same weights as one curve per channel (channel,frame,time_s,value)");
+  app->add_option("--unit_rig", cmd->unit_rig_file,
+                  "A .usda: the actor's units as a USD BlendShape rig, the weights time-sampled");
   app->add_option("--fps", cmd->fps, "Frame rate written to the output")
       ->check(CLI::PositiveNumber);
   app->add_flag("--no_cache_write", cmd->no_cache_write,

@@ -30,6 +30,7 @@
 #include "core/tracks_2d.h"
 #include "core/actor.h"
 #include "core/actor_cache.h"
+#include "core/day_markers.h"
 #include "triangulation/dot_offset.h"
 #include "triangulation/triangulate.h"
 
@@ -157,7 +158,8 @@ HMC_COMMAND(Triangulate, "", "triangulate",
                   : ReadTracks2dCsv(*tracks_path);
     std::map<std::string, Vec3> offsets;
     if (!actor_dir->empty()) {
-      offsets = DotRimOffsets(*LoadActorShared(*actor_dir), options->dot_radius, options->dot_fit_radius);
+      offsets = DotRimOffsets(*LoadActorForDay(*actor_dir, options->day.markers), options->dot_radius,
+                              options->dot_fit_radius);
     }
     const TriangulateOutput result = RunTriangulate(
         {&rig, &tracks, *tracks_path, actor_dir->empty() ? nullptr : &offsets}, *options);

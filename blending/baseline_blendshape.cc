@@ -20,26 +20,30 @@ void BlendshapeOptions::Register(OptionFields* fields) {
   fields->Add("bounded", &bounded,
               "hard bounds 0 <= w <= 1 instead of the soft penalty");
   fields->Add("penalty", &penalty,
-              "soft [0,1] penalty weight (mm^2 per unit weight^2)");
+              "soft [0,1] penalty weight (mm^2 per unit weight^2)")
+      .AtLeast(0);
   fields->Add("tikhonov", &tikhonov,
-              "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)");
+              "|w|^2 regulariser for conditioning (mm^2 per unit weight^2)")
+      .Above(0);
   fields->Add("max_iterations", &max_iterations,
               "solver iterations per frame (Newton steps of the soft fit, "
-              "active-set updates of the bounded one)");
+              "active-set updates of the bounded one)")
+      .AtLeast(1);
   fields->SetGroup("");
 }
 
 bool BlendshapeOptions::Check() const {
-  CHECK_OPTION_GE(penalty, 0.0);
-  CHECK_OPTION(std::isfinite(penalty));
-  CHECK_OPTION_GT(tikhonov, 0.0);
-  CHECK_OPTION(std::isfinite(tikhonov));
-  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
   return true;
 }
 
 namespace {
+
+// A shape enters a fit of bounded size (options.max_shapes) when more than
+// this share of its motion at the bundles is new (docs/method.md, "A global
+// fit of bounded size").
+constexpr double kMinNewShare = 0.05;
 
 double SoftObjective(const Eigen::MatrixXd& Q, const Eigen::VectorXd& c,
                      double mu, const Eigen::VectorXd& w) {
@@ -261,18 +265,55 @@ SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
   return result;
 }
 
+std::vector<int> SelectSpanningShapes(const Eigen::MatrixXd& site_shapes,
+                                      int max_shapes, double min_new) {
+  const int N = static_cast<int>(site_shapes.cols());
+  std::vector<int> kept;
+  if (max_shapes <= 0 || N <= max_shapes) {
+    for (int n = 0; n < N; ++n) kept.push_back(n);
+    return kept;
+  }
+  // An orthonormal basis of the kept shapes' span (modified Gram-Schmidt,
+  // twice: one pass loses orthogonality on nearly dependent shapes).
+  Eigen::MatrixXd basis(site_shapes.rows(), max_shapes);
+  for (int n = 0; n < N && static_cast<int>(kept.size()) < max_shapes; ++n) {
+    const double norm = site_shapes.col(n).norm();
+    if (!(norm > 0)) continue;
+    Eigen::VectorXd r = site_shapes.col(n);
+    for (int pass = 0; pass < 2; ++pass) {
+      for (size_t i = 0; i < kept.size(); ++i) {
+        r -= basis.col(static_cast<int>(i)).dot(r) * basis.col(static_cast<int>(i));
+      }
+    }
+    const double left = r.norm();
+    if (!(left > min_new * norm)) continue;
+    basis.col(static_cast<int>(kept.size())) = r / left;
+    kept.push_back(n);
+  }
+  return kept;
+}
+
 BlendshapeSolver::BlendshapeSolver(const TriMesh& neutral,
                                    const ShapeData& data,
                                    const BlendshapeOptions& options)
     : neutral_(neutral), data_(data), options_(options) {
-  const int K = data.num_bundles, N = data.num_shapes;
+  const int K = data.num_bundles;
   HMC_CHECK(neutral.NumVertices() == data.num_vertices);
   for (int k = 0; k < K; ++k) marker_index_[data.bundle_names[k]] = k;
-  site_shapes_.resize(3 * K, N);
-  for (int n = 0; n < N; ++n) {
+  site_shapes_.resize(3 * K, data.num_shapes);
+  for (int n = 0; n < data.num_shapes; ++n) {
     for (int k = 0; k < K; ++k) {
       site_shapes_.block<3, 1>(3 * k, n) = data.SiteDisplacement(n, k);
     }
+  }
+  shapes_ = SelectSpanningShapes(site_shapes_, options.max_shapes,
+                                 kMinNewShare);
+  if (static_cast<int>(shapes_.size()) < data.num_shapes) {
+    Eigen::MatrixXd kept(3 * K, shapes_.size());
+    for (size_t i = 0; i < shapes_.size(); ++i) {
+      kept.col(static_cast<int>(i)) = site_shapes_.col(shapes_[i]);
+    }
+    site_shapes_ = std::move(kept);
   }
   normal_ = site_shapes_.transpose() * site_shapes_;
   normal_.diagonal().array() += options.tikhonov;
@@ -304,7 +345,7 @@ FrameSolve BlendshapeSolver::SolveFrame(const BundleFrame& bundles,
     return f;
   }
   const Eigen::VectorXd w =
-      FitWeights(observed, d, Eigen::VectorXd::Zero(data_.num_shapes), start);
+      FitWeights(observed, d, Eigen::VectorXd::Zero(num_shapes()), start);
   f.ok = true;
   if (mesh) {
     *mesh = Blend(w, jaw);
@@ -330,7 +371,7 @@ Eigen::MatrixXd BlendshapeSolver::Normal(
 Eigen::VectorXd BlendshapeSolver::FitWeights(
     const std::vector<char>& observed, const Eigen::VectorXd& d,
     const Eigen::VectorXd& ridge, const Eigen::VectorXd* start) const {
-  HMC_CHECK(ridge.size() == data_.num_shapes);
+  HMC_CHECK(ridge.size() == num_shapes());
   Eigen::MatrixXd H = Normal(observed);
   H.diagonal() += ridge;
   const Eigen::VectorXd c = Project(d);
@@ -343,7 +384,7 @@ Eigen::VectorXd BlendshapeSolver::FitWeights(
 std::vector<Vec3> BlendshapeSolver::LeaveOneOutResiduals(
     const std::vector<char>& observed, const Eigen::VectorXd& weights,
     const Eigen::VectorXd& ridge, const std::vector<Vec3>& residual) const {
-  const int K = data_.num_bundles, N = data_.num_shapes;
+  const int K = data_.num_bundles, N = num_shapes();
   // The free set is read from the bounds: only the bounded fit has them.
   HMC_CHECK(options_.bounded);
   HMC_CHECK(weights.size() == N && ridge.size() == N &&
@@ -375,8 +416,11 @@ std::vector<Vec3> BlendshapeSolver::LeaveOneOutResiduals(
 
 MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,
                                const JawPose& jaw) const {
-  const int V = data_.num_vertices, N = data_.num_shapes;
-  HMC_CHECK(weights.size() == N);
+  const int V = data_.num_vertices;
+  HMC_CHECK(weights.size() == num_shapes());
+  // Over every dataset shape (0 for those the solver leaves out).
+  Eigen::VectorXd all = Eigen::VectorXd::Zero(data_.num_shapes);
+  for (int i = 0; i < num_shapes(); ++i) all[shapes_[i]] = weights[i];
   MatX3d out(V, 3);
   ParallelFor(
       0, V,
@@ -385,7 +429,7 @@ MatX3d BlendshapeSolver::Blend(const Eigen::VectorXd& weights,
         // The shapes that move v, those with a weight (the others add 0).
         for (int j = data_.vertex_shape_start[v];
              j < data_.vertex_shape_start[v + 1]; ++j) {
-          const double w = weights[data_.vertex_shapes[j]];
+          const double w = all[data_.vertex_shapes[j]];
           if (w == 0) continue;
           const float* bn = &data_.vertex_shape_displacement[3 * j];
           x[0] += w * bn[0];

@@ -49,6 +49,10 @@ struct BlendshapeOptions {
                                      // (fraction of markers) are bad; not
                                      // registered: `hmc solve` sets it from
                                      // solve.min_bundle_fraction
+  int max_shapes = 0;  // > 0: fit over at most this many dataset shapes,
+                       // SelectSpanningShapes's (0: every shape); not
+                       // registered: the robust default sets it from
+                       // robust.global_shapes
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -67,6 +71,18 @@ Eigen::VectorXd SolveBoundedBoxQp(const Eigen::MatrixXd& Q,
                                   const Eigen::VectorXd& c, int max_iterations,
                                   const Eigen::VectorXd* start = nullptr);
 
+// The dataset shapes a global fit over at most max_shapes of them uses
+// (indices, ascending; docs/method.md "A global fit of bounded size"):
+// every shape when N <= max_shapes (or max_shapes <= 0); else, in the
+// dataset's order, each shape whose displacement at the bundles (column n
+// of site_shapes, 3K x N) keeps more than min_new of its norm outside the
+// span of the shapes kept before it, until max_shapes are kept. Shapes
+// that do not move the bundles are never kept then. Every dataset shape is
+// then within min_new (relative) of the kept shapes' span at the bundles,
+// unless the cap was reached.
+std::vector<int> SelectSpanningShapes(const Eigen::MatrixXd& site_shapes,
+                                      int max_shapes, double min_new);
+
 // Runs a per-frame baseline over a sequence with the lgi conventions
 // (LgiSolver::SolveSequence): frame_errors (empty or one per frame) marks
 // frames bad; a bad frame, or one `solve` returns !ok, repeats the previous
@@ -83,11 +99,19 @@ SolveResult RunBaselineSequence(const ShapeData& data, const TriMesh& neutral,
                                 const BaselineFrameFn& solve,
                                 const std::string& name);
 
+// Weights are over the solver's shapes (N below is num_shapes(), their
+// dataset indices shapes()): every dataset shape unless options.max_shapes
+// selects fewer.
 class BlendshapeSolver {
  public:
   // neutral (V x 3, triangles) and data must outlive the solver.
   BlendshapeSolver(const TriMesh& neutral, const ShapeData& data,
                    const BlendshapeOptions& options);
+
+  // The shapes the weights are over: how many, and their dataset indices
+  // (ascending).
+  int num_shapes() const { return static_cast<int>(shapes_.size()); }
+  const std::vector<int>& shapes() const { return shapes_; }
 
   // Fits the weights for one frame; on success fills *weights (N) and, if
   // mesh is given, the skinned result (V x 3) and each bundle's residual.
@@ -147,6 +171,7 @@ class BlendshapeSolver {
   const ShapeData& data_;
   BlendshapeOptions options_;
   std::unordered_map<std::string, int> marker_index_;
+  std::vector<int> shapes_;      // the dataset indices of the N shapes
   Eigen::MatrixXd site_shapes_;  // 3K x N: rows 3k..3k+2 are B_k
   Eigen::MatrixXd normal_;       // N x N: sum_k B_k^T B_k + lambda I
 };

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "core/jaw.h"
@@ -361,6 +362,99 @@ TEST_P(BlendshapeSeeded, LeaveOneOutMatchesRefitting) {
     left_out += loo[k].squaredNorm();
   }
   EXPECT_GT(left_out, in_fit);
+}
+
+// The spanning selection (a global fit of bounded size): every shape when
+// the cap allows; else the shapes, in order, that add a direction at the
+// bundles -- combinations of earlier ones and still shapes never -- and
+// every shape lies within the threshold of the kept shapes' span.
+TEST_P(BlendshapeSeeded, SpanningShapesCoverTheDataset) {
+  std::mt19937 rng(GetParam());
+  std::normal_distribution<double> g(0, 1);
+  std::uniform_real_distribution<double> u(0, 1);
+  const int rows = 60, base = 12, combos = 25, fresh = 8;
+  const double min_new = 0.05;
+  Eigen::MatrixXd B(rows, base + combos + 1 + fresh);
+  for (int n = 0; n < base; ++n) {
+    for (int r = 0; r < rows; ++r) B(r, n) = g(rng);
+  }
+  // Combinations of the base shapes, a little off their span (below the
+  // threshold), then a shape that does not move the bundles, then new ones.
+  for (int n = base; n < base + combos; ++n) {
+    B.col(n).setZero();
+    for (int m = 0; m < base; ++m) {
+      if (u(rng) < 0.3) B.col(n) += u(rng) * B.col(m);
+    }
+    B.col(n) += 0.2 * B.col(static_cast<int>(u(rng) * base));
+    Eigen::VectorXd off(rows);
+    for (int r = 0; r < rows; ++r) off[r] = g(rng);
+    B.col(n) += 0.2 * min_new * B.col(n).norm() / off.norm() * off;
+  }
+  B.col(base + combos).setZero();
+  for (int n = base + combos + 1; n < B.cols(); ++n) {
+    for (int r = 0; r < rows; ++r) B(r, n) = g(rng);
+  }
+  const int N = static_cast<int>(B.cols());
+  for (int cap : {0, N, N + 5}) {
+    const std::vector<int> all = SelectSpanningShapes(B, cap, min_new);
+    ASSERT_EQ(static_cast<int>(all.size()), N);
+    for (int n = 0; n < N; ++n) EXPECT_EQ(all[n], n);
+  }
+  for (int cap : {N - 1, base + 3, base / 2}) {
+    const std::vector<int> kept = SelectSpanningShapes(B, cap, min_new);
+    ASSERT_LE(static_cast<int>(kept.size()), cap);
+    ASSERT_TRUE(std::is_sorted(kept.begin(), kept.end()));
+    for (int n : kept) EXPECT_TRUE(n < base || n > base + combos) << n;
+    // In order: the first shapes of the base come first.
+    for (int i = 0; i < std::min(cap, base); ++i) EXPECT_EQ(kept[i], i);
+    if (static_cast<int>(kept.size()) == cap) continue;  // the cap cut it
+    ASSERT_EQ(static_cast<int>(kept.size()), base + fresh);
+    Eigen::MatrixXd K(rows, kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) K.col(static_cast<int>(i)) = B.col(kept[i]);
+    const Eigen::MatrixXd P = K * K.colPivHouseholderQr().solve(B);
+    for (int n = 0; n < N; ++n) {
+      EXPECT_LE((B.col(n) - P.col(n)).norm(), min_new * B.col(n).norm() + 1e-12) << n;
+    }
+  }
+}
+
+// A fit over a bounded set of shapes recovers blends of its shapes, and its
+// mesh is the blend of those dataset shapes.
+TEST_P(BlendshapeSeeded, BoundedShapeSetRecoversBlendsOfItsShapes) {
+  const int seed = GetParam();
+  const Actor actor = SmallActor(seed, /*inbetweens=*/true);
+  const ShapeData data = ComputeShapeData(actor);
+  BlendshapeOptions options;
+  options.bounded = true;
+  options.tikhonov = 1e-12;
+  options.max_shapes = data.num_shapes / 2;
+  const BlendshapeSolver solver(actor.neutral, data, options);
+  ASSERT_GT(solver.num_shapes(), 0);
+  ASSERT_LE(solver.num_shapes(), options.max_shapes);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::VectorXd truth = Eigen::VectorXd::Zero(data.num_shapes);
+  Eigen::VectorXd own(solver.num_shapes());
+  for (int i = 0; i < solver.num_shapes(); ++i) {
+    own[i] = u(rng) < 0.5 ? 0 : u(rng);
+    truth[solver.shapes()[i]] = own[i];
+  }
+  const JawPose jaw;
+  const BundleFrame frame = BundlesOf(data, truth, jaw, 1);
+  Eigen::VectorXd w;
+  MatX3d mesh;
+  const FrameSolve fs = solver.SolveFrame(frame, jaw, &w, &mesh);
+  ASSERT_TRUE(fs.ok) << fs.reason;
+  EXPECT_LT((w - own).lpNorm<Eigen::Infinity>(), 1e-6);
+  MatX3d expected = actor.neutral.V;
+  for (int v = 0; v < data.num_vertices; ++v) {
+    for (int n = 0; n < data.num_shapes; ++n) {
+      const float* d = data.Displacement(v, n);
+      for (int a = 0; d && a < 3; ++a) expected(v, a) += truth[n] * d[a];
+    }
+  }
+  if (data.jaw_rig) expected = Skin(*data.jaw_rig, jaw, expected);
+  EXPECT_LT((mesh - expected).cwiseAbs().maxCoeff(), 1e-5);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, BlendshapeSeeded, ::testing::Values(1, 2, 5));

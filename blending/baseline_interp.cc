@@ -17,14 +17,14 @@ void InterpOptions::Register(OptionFields* fields) {
   fields->SetGroup("interp");
   fields->Add("merge_mm", &merge_mm,
               "bundles whose sites on the neutral are closer than this share "
-              "one constraint (mm)");
+              "one constraint (mm)")
+      .AtLeast(0);
   fields->SetGroup("");
 }
 
 bool InterpOptions::Check() const {
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
-  CHECK_OPTION_GE(merge_mm, 0.0);
-  CHECK_OPTION(std::isfinite(merge_mm));
   return true;
 }
 

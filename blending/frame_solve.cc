@@ -94,30 +94,32 @@ void SequenceInputOptions::Register(OptionFields* fields) {
   fields->SetGroup("input");
   fields->Add("max_frame_gap", &max_frame_gap,
               "most missing frames in a row between two frames of "
-              "bundles.csv; a larger gap is an input error (frames)");
+              "bundles.csv; a larger gap is an input error (frames)")
+      .AtLeast(0);
   fields->Add("outlier_margin_mm", &outlier_margin_mm,
-              "a bundle farther than this outside the box of the actor's "
-              "dataset is an outlier: flagged, dropped from its frame (mm)");
+              "a bundle farther than this outside the box of every position "
+              "the actor's dataset gives its marker (the jaw taken out) is "
+              "an outlier: flagged, dropped from its frame (mm)")
+      .In(0, 1e6);
   fields->Add("jaw_open_deg", &jaw_open_deg,
               "[min, max] of a jaw pose's open_deg; outside: the frame is "
-              "flagged bad (degrees)");
+              "flagged bad (degrees)")
+      .In(-180, 180);
   fields->Add("jaw_lateral_max_deg", &jaw_lateral_max_deg,
               "largest |lateral_deg| of a jaw pose; beyond: the frame is "
-              "flagged bad (degrees)");
+              "flagged bad (degrees)")
+      .In(0, 180);
   fields->Add("jaw_protrude_max_mm", &jaw_protrude_max_mm,
               "largest |protrude_mm| of a jaw pose; beyond: the frame is "
-              "flagged bad (mm)");
+              "flagged bad (mm)")
+      .In(0, 1000);
   fields->SetGroup("");
 }
 
 bool SequenceInputOptions::Check() const {
-  CHECK_OPTION_GE(max_frame_gap, 0);
-  CHECK_OPTION_IN(outlier_margin_mm, 0.0, 1e6);
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION_EQ(jaw_open_deg.size(), 2u);
-  CHECK_OPTION_IN(jaw_open_deg[0], -180.0, 180.0);
-  CHECK_OPTION_IN(jaw_open_deg[1], jaw_open_deg[0], 180.0);
-  CHECK_OPTION_IN(jaw_lateral_max_deg, 0.0, 180.0);
-  CHECK_OPTION_IN(jaw_protrude_max_mm, 0.0, 1000.0);
+  CHECK_OPTION_LE(jaw_open_deg[0], jaw_open_deg[1]);
   return true;
 }
 
@@ -144,27 +146,6 @@ std::string JawPoseRangeError(const JawPose& pose,
   }
   return "";
 }
-
-namespace {
-
-// The box of every position the actor's dataset holds: the neutral and
-// every shape (neutral + displacement), in mm.
-Eigen::Matrix<double, 2, 3> DatasetBox(const Actor& actor) {
-  const MatX3d& v = actor.neutral.V;
-  Eigen::RowVector3d lo = v.colwise().minCoeff();
-  Eigen::RowVector3d hi = v.colwise().maxCoeff();
-  for (const Shape& shape : actor.shapes) {
-    const MatX3d p = v + shape.displacement;
-    lo = lo.cwiseMin(p.colwise().minCoeff());
-    hi = hi.cwiseMax(p.colwise().maxCoeff());
-  }
-  Eigen::Matrix<double, 2, 3> box;
-  box.row(0) = lo;
-  box.row(1) = hi;
-  return box;
-}
-
-}  // namespace
 
 DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
                                 const std::string& bundles_name,
@@ -200,54 +181,20 @@ DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
   d.frame_errors.assign(n, "no bundles in this frame");
   for (int i = 0; i < n; ++i) d.frames[i].frame = d.first_frame + i;
 
-  const Eigen::Matrix<double, 2, 3> box = DatasetBox(actor);
-  const Eigen::RowVector3d lo = box.row(0).array() - options.outlier_margin_mm;
-  const Eigen::RowVector3d hi = box.row(1).array() + options.outlier_margin_mm;
   std::set<std::string> known, unknown;
   for (const Marker& marker : actor.markers) known.insert(marker.name);
-  std::string first_outlier;
   for (const BundleFrame& row : rows) {
     const int i = row.frame - d.first_frame;
-    BundleFrame& frame = d.frames[i];
-    frame = row;
+    d.frames[i] = row;
     d.frame_errors[i].clear();
-    for (auto it = frame.bundles.begin(); it != frame.bundles.end();) {
-      const Vec3& p = it->second;
-      if (!known.count(it->first)) {
-        unknown.insert(it->first);
+    for (const auto& [name, p] : row.bundles) {
+      if (!known.count(name)) {
+        unknown.insert(name);
         ++d.unknown_rows;
-        ++it;
-        continue;
       }
-      bool inside = true;
-      for (int axis = 0; axis < 3; ++axis) {
-        inside = inside && p[axis] >= lo[axis] && p[axis] <= hi[axis];
-      }
-      if (inside) {
-        ++it;
-        continue;
-      }
-      if (first_outlier.empty()) {
-        first_outlier = fmt::format("frame {} marker {} at ({}, {}, {})",
-                                    row.frame, it->first, p.x(), p.y(),
-                                    p.z());
-      }
-      d.outliers[i].push_back(it->first);
-      ++d.num_outliers;
-      it = frame.bundles.erase(it);
     }
   }
   d.unknown_markers.assign(unknown.begin(), unknown.end());
-  if (d.num_outliers > 0) {
-    spdlog::warn(
-        "{}: {} bundle(s) outside the actor's reach (its dataset's box "
-        "[{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] x [{:.1f}, {:.1f}] mm plus "
-        "input.outlier_margin_mm = {}): dropped from their frames and "
-        "filled like missing markers; first: {}",
-        bundles_name, d.num_outliers, box(0, 0), box(1, 0), box(0, 1),
-        box(1, 1), box(0, 2), box(1, 2), options.outlier_margin_mm,
-        first_outlier);
-  }
   if (!d.unknown_markers.empty()) {
     spdlog::warn("{}: {} row(s) name {} marker(s) the actor does not have "
                  "(ignored): {}",
@@ -272,6 +219,61 @@ DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
     }
   }
   return d;
+}
+
+void DropBundlesBeyondReach(const ShapeData& data, double margin_mm,
+                            const std::string& bundles_name, DenseSequence* d) {
+  const int K = data.num_bundles;
+  std::unordered_map<std::string, int> marker_index;
+  for (int k = 0; k < K; ++k) marker_index[data.bundle_names[k]] = k;
+  // Each site's box over the neutral (zero displacement) and every shape.
+  MatX3d lo = MatX3d::Zero(K, 3), hi = MatX3d::Zero(K, 3);
+  for (int n = 0; n < data.num_shapes; ++n) {
+    const auto block = data.site_displacement.middleRows(static_cast<int64_t>(n) * K, K);
+    lo = lo.cwiseMin(block);
+    hi = hi.cwiseMax(block);
+  }
+  lo += data.site_neutral;
+  hi += data.site_neutral;
+  double farthest_kept = 0;
+  std::string first;
+  for (size_t i = 0; i < d->frames.size(); ++i) {
+    auto& bundles = d->frames[i].bundles;
+    for (auto it = bundles.begin(); it != bundles.end();) {
+      const auto k = marker_index.find(it->first);
+      if (k == marker_index.end()) {  // unknown: counted by MakeDenseSequence
+        ++it;
+        continue;
+      }
+      const Vec3 u = UnskinBundle(data, k->second, d->jaw[i], it->second);
+      const Vec3 outside = (lo.row(k->second).transpose() - u)
+                               .cwiseMax(u - hi.row(k->second).transpose())
+                               .cwiseMax(0.0);
+      const double distance = outside.norm();
+      if (distance <= margin_mm) {
+        farthest_kept = std::max(farthest_kept, distance);
+        ++it;
+        continue;
+      }
+      if (first.empty()) {
+        first = fmt::format("frame {} marker {}, {:.1f} mm out", d->frames[i].frame, it->first,
+                            distance);
+      }
+      d->outliers[i].push_back(it->first);
+      ++d->num_outliers;
+      it = bundles.erase(it);
+    }
+  }
+  if (d->num_outliers > 0) {
+    spdlog::warn(
+        "{}: {} bundle(s) beyond their marker's reach (farther than "
+        "input.outlier_margin_mm = {} mm outside the box of every position the "
+        "actor's dataset gives the marker, the jaw taken out): dropped from "
+        "their frames and filled like missing markers; first: {}",
+        bundles_name, d->num_outliers, margin_mm, first);
+  }
+  spdlog::debug("{}: the farthest bundle kept is {:.3f} mm beyond its marker's reach",
+                bundles_name, farthest_kept);
 }
 
 void FillBadMeshes(const TriMesh& neutral, const JawRig* rig,

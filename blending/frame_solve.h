@@ -17,6 +17,7 @@
 #include "core/jaw.h"
 #include "core/mesh.h"
 #include "core/options.h"
+#include "indexing/shape_data.h"
 
 namespace hmc {
 
@@ -117,11 +118,12 @@ struct SequenceInputOptions {
   int max_frame_gap = 1000;  // most missing frames in a row between two
                              // frames of bundles.csv; a larger gap is an
                              // input error (decided before any allocation)
-  double outlier_margin_mm = 100.0;  // a bundle farther than this outside
-                                     // the box of the actor's dataset
-                                     // (neutral and every shape) is an
-                                     // outlier: flagged, dropped from its
-                                     // frame (filled like a missing marker)
+  double outlier_margin_mm = 10.0;  // a bundle farther than this outside
+                                    // the box of every position the
+                                    // dataset gives its marker (the jaw
+                                    // taken out) is an outlier: flagged,
+                                    // dropped from its frame (filled like
+                                    // a missing marker); docs/reliability.md
   std::vector<double> jaw_open_deg = {-20.0, 60.0};  // [min, max] of open_deg
   double jaw_lateral_max_deg = 30.0;  // |lateral_deg| at most this
   double jaw_protrude_max_mm = 30.0;  // |protrude_mm| at most this
@@ -135,8 +137,8 @@ struct SequenceInputOptions {
 // of bundles.csv. A frame without rows ("no bundles in this frame") or, when
 // a jaw file is given, without a jaw pose ("no jaw pose for this frame in
 // <jaw_name>") or with a jaw pose outside the options' range is marked bad
-// by its frame_errors entry. Outlier bundles are removed from their frame
-// and listed in `outliers` (one list of marker names per frame).
+// by its frame_errors entry. `outliers` is sized (one empty list per frame)
+// for DropBundlesBeyondReach.
 struct DenseSequence {
   int first_frame = 0;
   std::vector<BundleFrame> frames;
@@ -158,6 +160,17 @@ DenseSequence MakeDenseSequence(const std::vector<BundleFrame>& rows,
                                 const std::string& jaw_name,
                                 const Actor& actor,
                                 const SequenceInputOptions& options);
+
+// Drops the bundles beyond their marker's reach: unskinned with their
+// frame's jaw pose, farther than margin_mm outside the box of the positions
+// the dataset gives the marker's surface point (the neutral and every
+// shape), listing them in d->outliers (warned once, with the first). A
+// face does not leave its dataset's range by more than a fraction of it; a
+// bundle that does is a wrong name or a bad triangulation, and the solve
+// would otherwise move the surface onto it (its interpolation step follows
+// a residual beyond the noise).
+void DropBundlesBeyondReach(const ShapeData& data, double margin_mm,
+                            const std::string& bundles_name, DenseSequence* d);
 
 // "" when `pose` is inside the options' range, else what is out of range.
 std::string JawPoseRangeError(const JawPose& pose,

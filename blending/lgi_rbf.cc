@@ -20,13 +20,17 @@ void LgiRbfOptions::Register(OptionFields* fields) {
   fields->SetGroup("lgi_rbf");
   fields->Add("sigma_mm", &sigma_mm,
               "Gaussian width (mm); 0: sigma_scale times the median distance "
-              "of a bundle site to its nearest site on the neutral");
+              "of a bundle site to its nearest site on the neutral")
+      .AtLeast(0);
   fields->Add("sigma_scale", &sigma_scale,
-              "automatic Gaussian width, in nearest-site distances");
+              "automatic Gaussian width, in nearest-site distances")
+      .Above(0);
   fields->Add("ridge", &ridge,
-              "Tikhonov term added to the kernel matrix's unit diagonal");
+              "Tikhonov term added to the kernel matrix's unit diagonal")
+      .AtLeast(0);
   fields->Add("cutoff", &cutoff,
-              "kernel values below this are dropped (sparse evaluation)");
+              "kernel values below this are dropped (sparse evaluation)")
+      .Above(0).Below(1);
   fields->Add("correct", &correct,
               "smoothly correct the RBF result so it passes through the "
               "bundles (false: plain RBF, for comparison)");
@@ -34,14 +38,7 @@ void LgiRbfOptions::Register(OptionFields* fields) {
 }
 
 bool LgiRbfOptions::Check() const {
-  CHECK_OPTION_GE(sigma_mm, 0.0);
-  CHECK_OPTION(std::isfinite(sigma_mm));
-  CHECK_OPTION_GT(sigma_scale, 0.0);
-  CHECK_OPTION(std::isfinite(sigma_scale));
-  CHECK_OPTION_GE(ridge, 0.0);
-  CHECK_OPTION(std::isfinite(ridge));
-  CHECK_OPTION_GT(cutoff, 0.0);
-  CHECK_OPTION_LT(cutoff, 1.0);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

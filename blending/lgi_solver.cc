@@ -17,29 +17,30 @@ void SolveOptions::Register(OptionFields* fields) {
   fields->SetGroup("solve");
   fields->Add("outside_slack_mm", &outside_slack_mm,
               "outside the data, simplices this close to the closest one "
-              "compete by the neighbour criterion (mm)");
+              "compete by the neighbour criterion (mm)")
+      .AtLeast(0);
   fields->Add("temporal_preference", &temporal_preference,
               "candidates within this fraction of the best neighbour cost "
-              "compete by shapes shared with the previous frame (0 = off)");
+              "compete by shapes shared with the previous frame (0 = off)")
+      .AtLeast(0);
   fields->Add("tie_mm2", &tie_mm2,
               "candidates whose neighbour costs differ by at most this are "
               "tied; ties go to agreement with the neighbours' choices, then "
-              "to the least motion (mm^2)");
+              "to the least motion (mm^2)")
+      .AtLeast(0);
   fields->Add("smooth_window", &smooth_window,
               "frames of the centred moving average of shape weights "
-              "(0 = off)");
+              "(0 = off)")
+      .AtLeast(0);
   fields->Add("min_bundle_fraction", &min_bundle_fraction,
               "frames with fewer observed bundles (fraction of markers) are "
-              "flagged bad and skipped (every method)");
+              "flagged bad and skipped (every method)")
+      .In(0, 1);
   fields->SetGroup("");
 }
 
 bool SolveOptions::Check() const {
-  CHECK_OPTION_GE(outside_slack_mm, 0.0);
-  CHECK_OPTION_GE(temporal_preference, 0.0);
-  CHECK_OPTION_GE(tie_mm2, 0.0);
-  CHECK_OPTION_GE(smooth_window, 0);
-  CHECK_OPTION_IN(min_bundle_fraction, 0.0, 1.0);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

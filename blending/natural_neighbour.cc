@@ -17,14 +17,15 @@ namespace hmc {
 void NaturalNeighbourOptions::Register(OptionFields* fields) {
   fields->Add("domain", &domain,
               "where the Voronoi diagram lives: uv (the UV layout, default) "
-              "or geodesic (on the mesh, fast marching)");
+              "or geodesic (on the mesh, fast marching)")
+      .OneOf({"uv", "geodesic"});
   fields->Add("uv_resolution", &uv_resolution,
-              "pixels per side of the UV raster (domain uv)");
+              "pixels per side of the UV raster (domain uv)")
+      .In(16, 16384);
 }
 
 bool NaturalNeighbourOptions::Check() const {
-  CHECK_OPTION(domain == "uv" || domain == "geodesic");
-  CHECK_OPTION_IN(uv_resolution, 16, 16384);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

@@ -51,7 +51,7 @@ void RobustSolver::SolveLgiAndGlobal(
         fs.reason = global.reason;
         continue;
       }
-      wk.SetGlobal(std::move(w));
+      wk.SetGlobal(std::move(w), global_.shapes());
       start = &wk.global;
       wk.ok = true;
       wk.observed.assign(K, 0);
@@ -102,11 +102,11 @@ void RobustSolver::FitShapePrior(Sequence* seq) const {
     }
     const Eigen::VectorXd ridges =
         options_.ridge >= 0
-            ? Eigen::VectorXd::Constant(data_.num_shapes, options_.ridge)
+            ? Eigen::VectorXd::Constant(global_.num_shapes(), options_.ridge)
             : ChooseShapePrior(
                   global_, good_observed, disp, sigma,
                   options_.noise_mm < 0 ? std::sqrt(ChoiceNoiseVariance(*seq)) : -1.0,
-                  data_.num_shapes, &report.prior_noise_mm);
+                  global_.num_shapes(), &report.prior_noise_mm);
     std::vector<double> sorted(ridges.data(), ridges.data() + ridges.size());
     std::sort(sorted.begin(), sorted.end());
     report.shape_ridge.assign(ridges.data(), ridges.data() + ridges.size());
@@ -116,7 +116,8 @@ void RobustSolver::FitShapePrior(Sequence* seq) const {
       ParallelFor(0, static_cast<int64_t>(good.size()), [&](int64_t i) {
         Work& wk = work[good[i]];
         wk.SetGlobal(global_.FitWeights(wk.observed, disp[i], ridges,
-                                        &wk.global));
+                                        &wk.global),
+                     global_.shapes());
         for (int k = 0; k < K; ++k) {
           if (wk.observed[k]) {
             global_residual[i][k] =

@@ -27,7 +27,8 @@ void RobustOptions::Register(OptionFields* fields) {
               "and correction only)");
   fields->Add("margin", &margin,
               "lgi must beat the global fit's neighbourhood cost by this many "
-              "noise variances per bundle");
+              "noise variances per bundle")
+      .AtLeast(0);
   fields->Add("ridge", &ridge,
               "one ridge for every shape of the global fit (mm^2 per unit of "
               "weight^2); negative: one per shape, from the sequence's frames "
@@ -39,22 +40,33 @@ void RobustOptions::Register(OptionFields* fields) {
               "chosen per sequence by C_p");
   fields->Add("temporal_window", &temporal_window,
               "frames of the centred moving average of each bundle's answer "
-              "(step 3b, temporal coherence; <= 1: off)");
+              "(step 3b, temporal coherence; <= 1: off)")
+      .In(0, 61);
   fields->Add("temporal_tolerance", &temporal_tolerance,
               "the moving average replaces a bundle's answer where its "
               "neighbourhood cost exceeds the answer's by at most this many "
-              "noise variances per bundle");
+              "noise variances per bundle")
+      .AtLeast(0);
   fields->Add("take", &take,
               "whether the frames are a take, a continuous recording (steps "
               "3b and 3c run only on one): auto (the markers' lag-1 "
-              "correlation is at least 0.5), yes, no");
+              "correlation is at least 0.5), yes, no")
+      .OneOf({"auto", "yes", "no"});
   fields->Add("correction_window", &correction_window,
               "step 5 on a take: frames of the centred moving average of "
-              "the residuals the correction is fitted to (<= 1: off)");
+              "the residuals the correction is fitted to (<= 1: off)")
+      .In(0, 61);
   fields->Add("detail_window", &detail_window,
               "step 3c on a take: frames of the centred moving average of "
               "each bundle's local detail, its answer less the global one "
-              "(<= 1: off)");
+              "(<= 1: off)")
+      .In(0, 61);
+  fields->Add("global_shapes", &global_shapes,
+              "the global fit is over at most this many dataset shapes, in "
+              "the dataset's order those that add a direction at the "
+              "bundles, so that its cost does not grow with the dataset "
+              "(0: every shape)")
+      .AtLeast(0);
   fields->Add("interpolate", &interpolate,
               "after the correction (part of it: off with correct), "
               "interpolate what is left at each bundle beyond the noise's "
@@ -63,38 +75,7 @@ void RobustOptions::Register(OptionFields* fields) {
 }
 
 bool RobustOptions::Check() const {
-  if (!std::isfinite(noise_mm)) {
-    spdlog::error("robust options: noise_mm must be finite");
-    return false;
-  }
-  if (!(margin >= 0) || !std::isfinite(margin)) {
-    spdlog::error("robust options: margin must be >= 0 and finite");
-    return false;
-  }
-  if (temporal_window < 0 || temporal_window > 61) {
-    spdlog::error("robust options: temporal_window must be in [0, 61]");
-    return false;
-  }
-  if (take != "auto" && take != "yes" && take != "no") {
-    spdlog::error("robust options: take must be auto, yes or no (not '{}')", take);
-    return false;
-  }
-  if (correction_window < 0 || correction_window > 61) {
-    spdlog::error("robust options: correction_window must be in [0, 61]");
-    return false;
-  }
-  if (detail_window < 0 || detail_window > 61) {
-    spdlog::error("robust options: detail_window must be in [0, 61]");
-    return false;
-  }
-  if (!(temporal_tolerance >= 0) || !std::isfinite(temporal_tolerance)) {
-    spdlog::error("robust options: temporal_tolerance must be >= 0 and finite");
-    return false;
-  }
-  if (!std::isfinite(ridge)) {
-    spdlog::error("robust options: ridge must be finite");
-    return false;
-  }
+  CHECK_OPTION_LIMITS();
   return true;
 }
 
@@ -121,12 +102,12 @@ std::string RobustReport::BriefReport(bool interpolate,
                                       int good_frames) const {
   return fmt::format(
       "marker noise {:.3f} mm ({}; {:.3f} mm for the choice, {:.3g} "
-      "mm for the shape prior), global ridge per shape {:.3g} (median; "
-      "smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
+      "mm for the shape prior), global fit over {} shapes, ridge per shape "
+      "{:.3g} (median; smallest {:.3g}), correction {}, {}; {} bundles took the local lgi "
       "choice, {} the global fit, {} the temporal average; {} (lag-1 "
       "correlation {:.2f}){}",
       noise_mm, noise_estimated ? "estimated" : "given",
-      selection_noise_mm, prior_noise_mm, ridge,
+      selection_noise_mm, prior_noise_mm, global_shapes, ridge,
       ridge_min,
       lambda > 0
           ? fmt::format("width {:.1f} mm, smoothing {:.3g} ({} of {} frames "
@@ -156,6 +137,7 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
               {"noise_estimated", noise_estimated ? 1.0 : 0.0},
               {"selection_noise_mm", selection_noise_mm},
               {"prior_noise_mm", prior_noise_mm},
+              {"global_shapes", static_cast<double>(global_shapes)},
               {"ridge_median", ridge},
               {"ridge_min", ridge_min},
               {"correction_width_mm", width_mm},
@@ -181,6 +163,7 @@ SolveResult RobustSolver::SolveSequence(
   HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
   HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
   Sequence seq(smoothers_);
+  seq.report.global_shapes = global_.num_shapes();
   SolveLgiAndGlobal(frames, jaw, frame_errors, &seq);  // step 1
   EstimateNoise(&seq);                                 // step 2
   FitShapePrior(&seq);                                 // step 2b

@@ -125,6 +125,11 @@ struct RobustOptions {
   int detail_window = 5;      // step 3c on a take: frames of the moving
                               // average of each bundle's local detail
                               // (<= 1: off)
+  int global_shapes = 128;  // the global fit (steps 1, 2b) over at most
+                            // this many dataset shapes, those that span
+                            // the data at the bundles (SelectSpanningShapes
+                            // in blending/baseline_blendshape.h); 0: every
+                            // shape
   bool interpolate = true; // then interpolate, with the natural-neighbour
                            // weights, what is left at each bundle beyond
                            // the noise's threshold (step 5)
@@ -144,12 +149,13 @@ struct RobustReport {
   double ridge = 0.0;         // of the global fit, per shape: the median
                               // (mm^2 per weight^2)
   double ridge_min = 0.0;     // and the smallest
-  std::vector<double> shape_ridge;  // N: each shape's
+  std::vector<double> shape_ridge;  // each of the global fit's shapes'
   double width_mm = 0.0;      // Gaussian width of the correction (mm)
   double lambda = 0.0;        // its smoothing (0: no correction)
   int frames_uncorrected = 0; // good frames it left out (leave-one-out)
   double threshold_mm = 0.0;  // the interpolation's threshold (step 5)
   int64_t bundles_interpolated = 0;  // bundle-frames left beyond it
+  int global_shapes = 0;      // the shapes the global fit is over
   int64_t bundles_local = 0;  // observed bundles that took lgi's choice
   int64_t bundles_global = 0;
   int64_t bundles_smoothed = 0;  // bundle-frames that took the temporal

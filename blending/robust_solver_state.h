@@ -16,8 +16,10 @@ namespace hmc {
 // One frame's state between the passes.
 struct RobustSolver::Work {
   bool ok = false;
-  Eigen::VectorXd global;                  // N weights of the global fit
-  std::vector<std::pair<int, double>> global_nonzero;  // derived: SetGlobal
+  Eigen::VectorXd global;  // the global fit's weights, over its shapes
+                           // (BlendshapeSolver::shapes())
+  // derived (SetGlobal): the non-zero ones by dataset shape index
+  std::vector<std::pair<int, double>> global_nonzero;
   std::vector<Vec3> disp;                  // K observed displacements d_k
   std::vector<char> observed;              // K
   std::vector<char> use_global;            // K
@@ -25,11 +27,12 @@ struct RobustSolver::Work {
   Eigen::MatrixXd alpha;     // K x 3: the kernel's coefficients (empty: none)
   std::vector<Vec3> offset;  // K: interpolated at the bundles (empty: none)
 
-  void SetGlobal(Eigen::VectorXd w) {
+  // shapes: the dataset index of each weight.
+  void SetGlobal(Eigen::VectorXd w, const std::vector<int>& shapes) {
     global = std::move(w);
     global_nonzero.clear();
     for (int n = 0; n < global.size(); ++n) {
-      if (global[n] != 0) global_nonzero.emplace_back(n, global[n]);
+      if (global[n] != 0) global_nonzero.emplace_back(shapes[n], global[n]);
     }
   }
 };

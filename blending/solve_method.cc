@@ -122,14 +122,31 @@ void MethodSolvers::Prepare(const std::string& method) {
     blendshape_ = std::make_unique<BlendshapeSolver>(
         actor_.neutral, data(), options_.blendshape);
   }
-  if ((method == "blendshape-bounded" || method == "robust" ||
-       method == "robust-global") &&
+  const bool robust_method = method == "robust" || method == "robust-global";
+  // The robust default's global fit over a bounded set of shapes when the
+  // dataset has more (docs/method.md, "A global fit of bounded size"),
+  // else the blendshape-bounded baseline's.
+  const bool robust_subset =
+      options_.robust.global_shapes > 0 &&
+      data().num_shapes > options_.robust.global_shapes;
+  if ((method == "blendshape-bounded" || (robust_method && !robust_subset)) &&
       !blendshape_bounded_) {
     BlendshapeOptions bounded = options_.blendshape;
     bounded.bounded = true;
     blendshape_bounded_ =
         std::make_unique<BlendshapeSolver>(actor_.neutral, data(), bounded);
   }
+  if (robust_method && robust_subset && !robust_bounded_) {
+    BlendshapeOptions bounded = options_.blendshape;
+    bounded.bounded = true;
+    bounded.max_shapes = options_.robust.global_shapes;
+    robust_bounded_ =
+        std::make_unique<BlendshapeSolver>(actor_.neutral, data(), bounded);
+    spdlog::info("robust: the global fit over {} of {} shapes",
+                 robust_bounded_->num_shapes(), data().num_shapes);
+  }
+  const BlendshapeSolver* robust_global_fit =
+      robust_subset ? robust_bounded_.get() : blendshape_bounded_.get();
   if (method == "interp" && !interp_) {
     interp_ = std::make_unique<InterpSolver>(actor_.neutral, data(),
                                              options_.interp);
@@ -137,14 +154,14 @@ void MethodSolvers::Prepare(const std::string& method) {
   if (method == "robust" && !robust_) {
     robust_ = std::make_unique<RobustSolver>(
         actor_.neutral, lgi_model_->data, *lgi_, lgi_model_->nn,
-        *blendshape_bounded_, options_.solve, options_.robust);
+        *robust_global_fit, options_.solve, options_.robust);
   }
   if (method == "robust-global" && !robust_global_) {
     RobustOptions global = options_.robust;
     global.local = false;
     robust_global_ = std::make_unique<RobustSolver>(
         actor_.neutral, lgi_model_->data, *lgi_, lgi_model_->nn,
-        *blendshape_bounded_, options_.solve, global);
+        *robust_global_fit, options_.solve, global);
   }
 }
 

@@ -98,6 +98,9 @@ class MethodSolvers {
   std::unique_ptr<LgiRbfSolver> lgi_rbf_;
   std::unique_ptr<BlendshapeSolver> blendshape_;
   std::unique_ptr<BlendshapeSolver> blendshape_bounded_;
+  // The robust default's global fit when robust.global_shapes selects fewer
+  // than every shape (else it shares blendshape_bounded_).
+  std::unique_ptr<BlendshapeSolver> robust_bounded_;
   std::unique_ptr<InterpSolver> interp_;
   std::unique_ptr<RobustSolver> robust_;
   std::unique_ptr<RobustSolver> robust_global_;  // robust.local false

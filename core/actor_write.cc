@@ -21,6 +21,7 @@
 #include "core/parallel.h"
 #include "core/triangle.h"
 #include "core/actor_io.h"
+#include "core/day_markers.h"
 
 namespace hmc {
 
@@ -56,24 +57,8 @@ void WriteActor(const Actor& actor, const fs::path& dir, int precision) {
 
   WriteObj(dir / "neutral.obj", actor.neutral, precision);
 
-  fmt::memory_buffer markers;
-  auto out = std::back_inserter(markers);
-  fmt::format_to(out,
-                 "# vertex and face: 0-based indices of the v and f lines of "
-                 "neutral.obj\n{}\n",
-                 kMarkersHeader);
-  for (const Marker& marker : actor.markers) {
-    const std::string tags = fmt::format("{}", fmt::join(marker.tags, " "));
-    if (marker.vertex >= 0) {
-      fmt::format_to(out, "{},{},,,{}\n", marker.name, marker.vertex, tags);
-    } else {
-      // neutral.obj is written as triangles, so OBJ face = triangle.
-      fmt::format_to(out, "{},,{},{} {} {},{}\n", marker.name,
-                     marker.point.face, marker.point.bary[0],
-                     marker.point.bary[1], marker.point.bary[2], tags);
-    }
-  }
-  WriteFileAtomic(dir / "markers.csv", fmt::to_string(markers));
+  // neutral.obj is written as triangles, so OBJ face = triangle.
+  WriteFileAtomic(dir / "markers.csv", FormatMarkersCsv(actor.markers));
 
   if (actor.jaw_rig) {
     fmt::memory_buffer weights;

@@ -11,6 +11,8 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "core/temp_dir.h"
+
 #include "core/error.h"
 #include "core/file_util.h"
 
@@ -18,15 +20,6 @@ namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("hmc_frame_data_" + name + "_" +
-                        std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 // Doubles over many magnitudes, including ones with no short decimal form.
 double RandomValue(std::mt19937& rng) {
@@ -72,7 +65,8 @@ void ExpectErrorAtLine(const fs::path& file, int line, Fn read,
 class FrameDataSeeded : public ::testing::TestWithParam<unsigned> {};
 
 TEST_P(FrameDataSeeded, BundlesRoundTripExactly) {
-  const fs::path dir = FreshDir("bundles_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_frame_data_" + std::string("bundles_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const std::vector<BundleFrame> frames = RandomBundles(GetParam());
   WriteBundlesCsv(dir / "bundles.csv", frames);
   const std::vector<BundleFrame> back = ReadBundlesCsv(dir / "bundles.csv");
@@ -88,7 +82,8 @@ TEST_P(FrameDataSeeded, BundlesRoundTripExactly) {
 }
 
 TEST_P(FrameDataSeeded, JawRoundTripsExactly) {
-  const fs::path dir = FreshDir("jaw_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_frame_data_" + std::string("jaw_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   std::mt19937 rng(GetParam());
   std::vector<JawFrame> frames(7);
   for (size_t i = 0; i < frames.size(); ++i) {
@@ -106,7 +101,8 @@ TEST_P(FrameDataSeeded, JawRoundTripsExactly) {
 }
 
 TEST_P(FrameDataSeeded, PosesRoundTripExactly) {
-  const fs::path dir = FreshDir("poses_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_frame_data_" + std::string("poses_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   std::mt19937 rng(GetParam());
   std::normal_distribution<double> normal;
   std::vector<PoseFrame> frames(6);
@@ -131,7 +127,8 @@ INSTANTIATE_TEST_SUITE_P(Seeds, FrameDataSeeded,
                          ::testing::Values(1u, 2u, 5u, 23u));
 
 TEST(FrameDataTest, HeadersAreTheDocumentedOnes) {
-  const fs::path dir = FreshDir("headers");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("headers"));
+  const fs::path& dir = temp_dir.path();
   WriteBundlesCsv(dir / "bundles.csv", {});
   EXPECT_EQ(ReadFile(dir / "bundles.csv"), "frame,marker,x,y,z\n");
   WriteJawCsv(dir / "jaw.csv", {});
@@ -143,7 +140,8 @@ TEST(FrameDataTest, HeadersAreTheDocumentedOnes) {
 }
 
 TEST(FrameDataTest, RowsInAnyOrderComeBackByFrame) {
-  const fs::path dir = FreshDir("order");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("order"));
+  const fs::path& dir = temp_dir.path();
   const fs::path file = dir / "bundles.csv";
   WriteFileAtomic(file,
                   "frame,marker,x,y,z\r\n"
@@ -160,7 +158,8 @@ TEST(FrameDataTest, RowsInAnyOrderComeBackByFrame) {
 }
 
 TEST(FrameDataTest, BadBundlesAreRefusedWithFileAndLine) {
-  const fs::path dir = FreshDir("bad_bundles");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("bad_bundles"));
+  const fs::path& dir = temp_dir.path();
   const fs::path file = dir / "bundles.csv";
   struct Case {
     std::string text;
@@ -192,7 +191,8 @@ TEST(FrameDataTest, BadBundlesAreRefusedWithFileAndLine) {
 }
 
 TEST(FrameDataTest, BadJawIsRefusedWithFileAndLine) {
-  const fs::path dir = FreshDir("bad_jaw");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("bad_jaw"));
+  const fs::path& dir = temp_dir.path();
   const fs::path file = dir / "jaw.csv";
   const std::string header = "frame,open_deg,lateral_deg,protrude_mm\n";
   WriteFileAtomic(file, "frame,open,lateral,protrude\n1,0,0,0\n");
@@ -207,7 +207,8 @@ TEST(FrameDataTest, BadJawIsRefusedWithFileAndLine) {
 }
 
 TEST(FrameDataTest, BadPosesAreRefusedWithFileAndLine) {
-  const fs::path dir = FreshDir("bad_poses");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("bad_poses"));
+  const fs::path& dir = temp_dir.path();
   const fs::path file = dir / "head_from_helmet.csv";
   const std::string header =
       "frame,r00,r01,r02,r10,r11,r12,r20,r21,r22,tx,ty,tz\n";
@@ -225,7 +226,8 @@ TEST(FrameDataTest, BadPosesAreRefusedWithFileAndLine) {
 }
 
 TEST(FrameDataTest, WritersRefuseWhatCannotBeReadBack) {
-  const fs::path dir = FreshDir("refuse");
+  const TempDir temp_dir("hmc_frame_data_" + std::string("refuse"));
+  const fs::path& dir = temp_dir.path();
   BundleFrame frame;
   frame.frame = 1;
   frame.bundles["a,b"] = Vec3::Zero();

@@ -14,15 +14,12 @@ namespace hmc {
 void MeshMetricsOptions::Register(OptionFields* fields) {
   fields->Add("face_radius_mm", &face_radius_mm,
               "face region: vertices within this distance of the nearest "
-              "marker on the neutral (mm)");
+              "marker on the neutral (mm)")
+      .Above(0);
 }
 
 bool MeshMetricsOptions::Check() const {
-  if (!(face_radius_mm > 0) || !std::isfinite(face_radius_mm)) {
-    spdlog::error("face_radius_mm must be positive and finite, got {}",
-                  face_radius_mm);
-    return false;
-  }
+  CHECK_OPTION_LIMITS();
   return true;
 }
 

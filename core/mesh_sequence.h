@@ -21,6 +21,9 @@ struct MeshSequence {
   std::vector<MatX3d> frames;  // each V x 3 (mm)
   int start_frame = 1;         // number of frames[0]
   double fps = 30.0;           // frames per second
+  std::string timecode;        // SMPTE timecode of frames[0] ("" if none):
+                               // .usda keeps it (customLayerData), the
+                               // other formats have no place for it
   TriMesh topology;            // triangles (+ UVs); V may be empty for .pc2/.mdd
                                // when the topology is read from elsewhere
 };

@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/temp_dir.h"
+
 #include "core/error.h"
 #include "core/file_util.h"
 
@@ -19,15 +21,6 @@ namespace hmc {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("hmc_mesh_sequence_" + name + "_" +
-                        std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 int CountEntries(const fs::path& dir) {
   return static_cast<int>(
@@ -113,7 +106,8 @@ void Truncate(const fs::path& file, int64_t drop_bytes) {
 class MeshSequenceSeeded : public ::testing::TestWithParam<unsigned> {};
 
 TEST_P(MeshSequenceSeeded, Pc2RoundTripIsExact) {
-  const fs::path dir = FreshDir("pc2_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("pc2_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(GetParam(), 5, true);
   WriteMeshSequence(dir / "seq.pc2", seq);
   const MeshSequence back = ReadMeshSequence(dir / "seq.pc2");
@@ -131,7 +125,8 @@ TEST_P(MeshSequenceSeeded, Pc2RoundTripIsExact) {
 }
 
 TEST_P(MeshSequenceSeeded, Pc2HeaderMatchesBlendersLayout) {
-  const fs::path dir = FreshDir("pc2_header_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("pc2_header_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(GetParam(), 3, true);
   WriteMeshSequence(dir / "seq.pc2", seq);
   const std::string bytes = Bytes(dir / "seq.pc2");
@@ -156,7 +151,8 @@ TEST_P(MeshSequenceSeeded, Pc2HeaderMatchesBlendersLayout) {
 }
 
 TEST_P(MeshSequenceSeeded, MddRoundTripKeepsFramesFpsAndStart) {
-  const fs::path dir = FreshDir("mdd_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("mdd_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   for (const double fps : {24.0, 25.0, 30.0, 60.0, 30000.0 / 1001.0}) {
     MeshSequence seq = RandomSequence(GetParam(), 4, true);
     seq.fps = fps;
@@ -189,7 +185,8 @@ TEST_P(MeshSequenceSeeded, MddRoundTripKeepsFramesFpsAndStart) {
 }
 
 TEST_P(MeshSequenceSeeded, UsdaRoundTripIsExactInFloat32) {
-  const fs::path dir = FreshDir("usda_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("usda_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   // point3f / texCoord2f are float32: float32 values come back bit for bit,
   // doubles come back rounded to float32 (as every USD reader sees them).
   for (const bool float_exact : {true, false}) {
@@ -208,7 +205,8 @@ TEST_P(MeshSequenceSeeded, UsdaRoundTripIsExactInFloat32) {
 }
 
 TEST_P(MeshSequenceSeeded, ObjFolderRoundTripIsExact) {
-  const fs::path dir = FreshDir("obj_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("obj_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(GetParam(), 3, false);
   WriteMeshSequence(dir / "frames", seq, 17);
   EXPECT_EQ(CountEntries(dir / "frames"), 3);
@@ -233,7 +231,8 @@ TEST_P(MeshSequenceSeeded, ObjFolderRoundTripIsExact) {
 }
 
 TEST_P(MeshSequenceSeeded, FormatsConvertIntoEachOther) {
-  const fs::path dir = FreshDir("chain_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("chain_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(GetParam(), 4, true);
   // pc2 -> mdd -> usda -> obj folder -> pc2: float32 values survive all.
   WriteMeshSequence(dir / "a.pc2", seq);
@@ -256,7 +255,8 @@ TEST_P(MeshSequenceSeeded, FormatsConvertIntoEachOther) {
 // Reading a few frames of a sequence: those frames as a full read gives
 // them, the others empty, the numbering kept; in every format.
 TEST_P(MeshSequenceSeeded, WantedFramesOnlyAreRead) {
-  const fs::path dir = FreshDir("wanted_" + std::to_string(GetParam()));
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("wanted_" + std::to_string(GetParam())));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(GetParam(), 6, true);
   WriteMeshSequence(dir / "s.pc2", seq);
   WriteMeshSequence(dir / "s.mdd", seq);
@@ -287,7 +287,8 @@ INSTANTIATE_TEST_SUITE_P(Seeds, MeshSequenceSeeded,
                          ::testing::Values(1u, 2u, 3u, 11u, 42u));
 
 TEST(MeshSequenceTest, UsdaHasTheMetadataDccsNeed) {
-  const fs::path dir = FreshDir("usda_meta");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("usda_meta"));
+  const fs::path& dir = temp_dir.path();
   MeshSequence seq = RandomSequence(5, 2, true);
   seq.start_frame = 101;
   WriteMeshSequence(dir / "seq.usda", seq);
@@ -302,6 +303,19 @@ TEST(MeshSequenceTest, UsdaHasTheMetadataDccsNeed) {
         "int[] faceVertexIndices", "defaultPrim = \"face\""}) {
     EXPECT_NE(text.find(expected), std::string::npos) << expected;
   }
+  // Without a timecode none is written; with one, it reads back (and the
+  // formats without a place for it drop it).
+  EXPECT_EQ(text.find("timecode"), std::string::npos);
+  EXPECT_EQ(ReadMeshSequence(dir / "seq.usda").timecode, "");
+  seq.timecode = "01:00:03;02";
+  WriteMeshSequence(dir / "tc.usda", seq);
+  EXPECT_NE(Bytes(dir / "tc.usda").find("string timecode = \"01:00:03;02\""), std::string::npos);
+  const MeshSequence back = ReadMeshSequence(dir / "tc.usda");
+  EXPECT_EQ(back.timecode, seq.timecode);
+  EXPECT_EQ(back.start_frame, 101);
+  WriteMeshSequence(dir / "tc.pc2", seq);
+  EXPECT_EQ(ReadMeshSequence(dir / "tc.pc2").timecode, "");
+  fs::remove_all(dir);
 }
 
 TEST(MeshSequenceTest, FormatFromPath) {
@@ -318,7 +332,8 @@ TEST(MeshSequenceTest, FormatFromPath) {
 }
 
 TEST(MeshSequenceTest, TruncatedOrCorruptBinaryFilesAreRefused) {
-  const fs::path dir = FreshDir("corrupt");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("corrupt"));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(7, 3, true);
   for (const char* name : {"seq.pc2", "seq.mdd"}) {
     const fs::path file = dir / name;
@@ -365,7 +380,8 @@ TEST(MeshSequenceTest, TruncatedOrCorruptBinaryFilesAreRefused) {
 }
 
 TEST(MeshSequenceTest, MddWithBlendersRestFrameDropsIt) {
-  const fs::path dir = FreshDir("mdd_rest");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("mdd_rest"));
+  const fs::path& dir = temp_dir.path();
   MeshSequence seq = RandomSequence(9, 3, true);
   seq.start_frame = 0;  // Blender's exporter writes times 0, 1/fps, ...
   WriteMeshSequence(dir / "seq.mdd", seq);
@@ -382,7 +398,8 @@ TEST(MeshSequenceTest, MddWithBlendersRestFrameDropsIt) {
 }
 
 TEST(MeshSequenceTest, MddFrameNumbersNeedTheRightRate) {
-  const fs::path dir = FreshDir("mdd_rate");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("mdd_rate"));
+  const fs::path& dir = temp_dir.path();
   MeshSequence seq = RandomSequence(4, 1, true);
   seq.fps = 24.0;
   seq.start_frame = 1;
@@ -401,7 +418,8 @@ TEST(MeshSequenceTest, MddFrameRateAndStartSurviveLateFrameNumbers) {
   // 1001; long takes run far beyond): the rate and start must still come
   // back exactly from as few as two frames. (Late frames within about 25 of
   // a multiple of 1000 are ambiguous at NTSC rates: next test.)
-  const fs::path dir = FreshDir("mdd_late");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("mdd_late"));
+  const fs::path& dir = temp_dir.path();
   for (const int start : {1001, 86399, 199555}) {
     for (const int num_frames : {2, 4, 50}) {
       for (const double fps :
@@ -421,7 +439,8 @@ TEST(MeshSequenceTest, MddFrameRateAndStartSurviveLateFrameNumbers) {
 TEST(MeshSequenceTest, MddCannotTellNtscFromWholeRatesAtSomeFrames) {
   // Frame 1000 k at N x 1000/1001 fps is at the same time as frame 1001 k at
   // N fps: such files are identical, and the reader takes the whole rate.
-  const fs::path dir = FreshDir("mdd_ntsc");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("mdd_ntsc"));
+  const fs::path& dir = temp_dir.path();
   MeshSequence ntsc = RandomSequence(12, 3, true);
   ntsc.start_frame = 200000;
   ntsc.fps = 30000.0 / 1001.0;
@@ -440,7 +459,8 @@ TEST(MeshSequenceTest, MddCannotTellNtscFromWholeRatesAtSomeFrames) {
 }
 
 TEST(MeshSequenceTest, CorruptUsdaIsRefusedWithFileAndLine) {
-  const fs::path dir = FreshDir("usda_corrupt");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("usda_corrupt"));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(3, 3, true);
   WriteMeshSequence(dir / "seq.usda", seq);
   const std::string text = Bytes(dir / "seq.usda");
@@ -469,7 +489,8 @@ TEST(MeshSequenceTest, CorruptUsdaIsRefusedWithFileAndLine) {
 }
 
 TEST(MeshSequenceTest, ObjFolderWithAGapOrForeignFilesIsRefused) {
-  const fs::path dir = FreshDir("obj_bad");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("obj_bad"));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence seq = RandomSequence(2, 3, true);
   WriteMeshSequence(dir / "frames", seq);
   fs::remove(dir / "frames" / fmt::format("frame_{:06d}.obj",
@@ -488,7 +509,8 @@ TEST(MeshSequenceTest, ObjFolderWithAGapOrForeignFilesIsRefused) {
 }
 
 TEST(MeshSequenceTest, FailedWriteKeepsThePreviousOutput) {
-  const fs::path dir = FreshDir("atomic");
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("atomic"));
+  const fs::path& dir = temp_dir.path();
   const MeshSequence good = RandomSequence(6, 3, true);
   MeshSequence bad = RandomSequence(8, 3, true);
   bad.frames[2](1, 1) = std::nan("");  // the last frame is broken

@@ -26,23 +26,12 @@
 #include "core/file_util.h"
 #include "core/obj_io.h"
 #include "core/parallel.h"
+#include "core/usd_text.h"
 
 namespace hmc::sequence_io {
 // ---------------------------------------------------------------------------
 // .usda: one Mesh prim "face", topology and UVs once, `points` time-sampled
 // at time codes = frame numbers.
-
-// USD's point3f and texCoord2f hold float32: values are rounded to float32
-// and written as the shortest text that reads back as that float (at most 9
-// digits), or with fewer digits if `precision` asks for less.
-void AppendFloat(std::string* text, double x, int precision) {
-  const float value = static_cast<float>(x);
-  if (precision >= 9) {
-    fmt::format_to(std::back_inserter(*text), "{}", value);
-  } else {
-    fmt::format_to(std::back_inserter(*text), "{:.{}g}", value, precision);
-  }
-}
 
 // One frame's `points` time sample, "        F: [(x, y, z), ...],\n".
 std::string PointsSample(int frame, const MatX3d& X, int precision) {
@@ -51,11 +40,11 @@ std::string PointsSample(int frame, const MatX3d& X, int precision) {
   fmt::format_to(std::back_inserter(text), "        {}: [", frame);
   for (int v = 0; v < X.rows(); ++v) {
     text += v ? ", (" : "(";
-    AppendFloat(&text, X(v, 0), precision);
+    AppendUsdFloat(&text, X(v, 0), precision);
     text += ", ";
-    AppendFloat(&text, X(v, 1), precision);
+    AppendUsdFloat(&text, X(v, 1), precision);
     text += ", ";
-    AppendFloat(&text, X(v, 2), precision);
+    AppendUsdFloat(&text, X(v, 2), precision);
     text += ')';
   }
   text += "],\n";
@@ -73,21 +62,9 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
       out.write(text.data(), static_cast<std::streamsize>(text.size()));
       text.clear();
     };
-    fmt::format_to(std::back_inserter(text),
-                   "#usda 1.0\n"
-                   "(\n"
-                   "    defaultPrim = \"face\"\n"
-                   "    doc = \"hmc mesh sequence (mm, head space, +y up)\"\n"
-                   "    endTimeCode = {}\n"
-                   "    framesPerSecond = {}\n"
-                   "    metersPerUnit = 0.001\n"
-                   "    startTimeCode = {}\n"
-                   "    timeCodesPerSecond = {}\n"
-                   "    upAxis = \"Y\"\n"
-                   ")\n\n"
-                   "def Mesh \"face\"\n"
-                   "{{\n",
-                   last, seq.fps, first, seq.fps);
+    AppendUsdStageHeader(&text, "face", "hmc mesh sequence (mm, head space, +y up)", first, last,
+                         seq.fps, seq.timecode);
+    text += "def Mesh \"face\"\n{\n";
     // Extent per sample: renderers and usdchecker expect it on a Mesh.
     text += "    float3[] extent.timeSamples = {\n";
     for (size_t f = 0; f < seq.frames.size(); ++f) {
@@ -108,14 +85,7 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
                      box_f(0, 2), box_f(1, 0), box_f(1, 1), box_f(1, 2));
     }
     text += "    }\n";
-    text += "    int[] faceVertexCounts = [";
-    for (int t = 0; t < mesh.NumFaces(); ++t) text += t ? ", 3" : "3";
-    text += "]\n    int[] faceVertexIndices = [";
-    for (int t = 0; t < mesh.NumFaces(); ++t) {
-      fmt::format_to(std::back_inserter(text), "{}{}, {}, {}", t ? ", " : "",
-                     mesh.F(t, 0), mesh.F(t, 1), mesh.F(t, 2));
-    }
-    text += "]\n    uniform token orientation = \"rightHanded\"\n";
+    AppendUsdFaces(&text, mesh, "    ");
     text += "    point3f[] points.timeSamples = {\n";
     flush();
     // The frames' text formatted side by side, a batch at a time (bounded
@@ -133,23 +103,7 @@ void WriteUsda(const fs::path& path, const MeshSequence& seq, int precision) {
       }
     }
     text += "    }\n";
-    if (mesh.HasUVs()) {
-      text += "    texCoord2f[] primvars:st = [";
-      for (int i = 0; i < mesh.UV.rows(); ++i) {
-        text += i ? ", (" : "(";
-        AppendFloat(&text, mesh.UV(i, 0), precision);
-        text += ", ";
-        AppendFloat(&text, mesh.UV(i, 1), precision);
-        text += ')';
-      }
-      text += "] (\n        interpolation = \"faceVarying\"\n    )\n";
-      text += "    int[] primvars:st:indices = [";
-      for (int t = 0; t < mesh.NumFaces(); ++t) {
-        fmt::format_to(std::back_inserter(text), "{}{}, {}, {}", t ? ", " : "",
-                       mesh.FUV(t, 0), mesh.FUV(t, 1), mesh.FUV(t, 2));
-      }
-      text += "]\n";
-    }
+    AppendUsdUvs(&text, mesh, "    ", precision);
     text += "    uniform token subdivisionScheme = \"none\"\n}\n";
     flush();
   });
@@ -314,6 +268,14 @@ MeshSequence UsdaReader::Read(const MeshSequenceReadOptions& options) {
       fps = Number(key);
       if (!(fps > 0)) Fail(at, "{} must be positive", key);
     }
+  }
+  if (size_t at = FindAttribute("timecode", 0, first_def); at != std::string::npos) {
+    // `string timecode = "HH:MM:SS:FF"` of the custom layer data.
+    pos_ = at;
+    Expect('"', "timecode");
+    const size_t end = text_.find('"', pos_);
+    if (end == std::string::npos || end > first_def) Fail(at, "timecode: no closing quote");
+    seq.timecode = text_.substr(pos_, end - pos_);
   }
   seq.fps = options.fps > 0 ? options.fps : fps > 0 ? fps : 24.0;  // USD's
                                                                    // default

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "core/error.h"
@@ -194,31 +195,53 @@ std::string OptionFields::RangeText(const Field& f) {
 
 std::string OptionFields::RangeError(const std::string& prefix) const {
   for (const Field& f : fields_) {
+    // Every number must be finite, whatever its range (a config or a flag
+    // cannot give another; code can).
     auto in_range = [&](double v) {
-      return (f.lo_open ? v > f.lo : v >= f.lo) && (f.hi_open ? v < f.hi : v <= f.hi);
+      return std::isfinite(v) && (f.lo_open ? v > f.lo : v >= f.lo) &&
+             (f.hi_open ? v < f.hi : v <= f.hi);
     };
     auto allowed = [&](const std::string& v) {
       return f.choices.empty() || std::find(f.choices.begin(), f.choices.end(), v) != f.choices.end();
     };
-    const bool ok = std::visit(
-        [&](auto* pointer) {
+    // The value that is not allowed, a list's first such item, as text; and
+    // whether it is a number that is not finite. Nothing: all allowed.
+    struct Bad {
+      std::string text;
+      bool non_finite = false;
+    };
+    const std::optional<Bad> bad = std::visit(
+        [&](auto* pointer) -> std::optional<Bad> {
           using T = std::remove_pointer_t<decltype(pointer)>;
           if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
-            return in_range(static_cast<double>(*pointer));
+            const double v = static_cast<double>(*pointer);
+            if (in_range(v)) return std::nullopt;
+            return Bad{ValueString(f), !std::isfinite(v)};
           } else if constexpr (std::is_same_v<T, std::string>) {
-            return allowed(*pointer);
+            if (allowed(*pointer)) return std::nullopt;
+            return Bad{*pointer};
           } else if constexpr (std::is_same_v<T, std::vector<double>>) {
-            return std::all_of(pointer->begin(), pointer->end(), in_range);
+            for (const double v : *pointer) {
+              if (!in_range(v)) return Bad{fmt::format("{}", v), !std::isfinite(v)};
+            }
+            return std::nullopt;
           } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
-            return std::all_of(pointer->begin(), pointer->end(), allowed);
+            for (const std::string& v : *pointer) {
+              if (!allowed(v)) return Bad{"'" + v + "'"};
+            }
+            return std::nullopt;
           } else {
-            return true;
+            return std::nullopt;
           }
         },
         f.pointer);
-    if (!ok) {
-      return fmt::format("{}option '{}' = {} must be {}", f.origin.empty() ? "" : f.origin + ": ",
-                         prefix + f.name, ValueString(f), RangeText(f));
+    if (bad) {
+      const bool list = std::holds_alternative<std::vector<double>*>(f.pointer) ||
+                        std::holds_alternative<std::vector<std::string>*>(f.pointer);
+      return fmt::format("{}option '{}' = {}{} must be {}",
+                         f.origin.empty() ? "" : f.origin + ": ", prefix + f.name,
+                         ValueString(f), list ? ": item " + bad->text : "",
+                         bad->non_finite ? "finite" : RangeText(f));
     }
   }
   return "";

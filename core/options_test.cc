@@ -2,6 +2,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -16,6 +18,7 @@ struct ExampleOptions {
   bool enabled = true;         // a switch
   std::string mode = "uv";     // a word
   double grid_cell_mm = 2.0;   // in a group
+  std::vector<double> levels = {0, 0.5};  // a list of numbers, any range
 
   void Register(OptionFields* fields) {
     fields->Add("threshold_mm", &threshold_mm, "threshold (mm)").Above(0).AtMost(10);
@@ -25,6 +28,7 @@ struct ExampleOptions {
     fields->SetGroup("grid");
     fields->Add("cell_mm", &grid_cell_mm, "cell size (mm)").AtLeast(0.5);
     fields->SetGroup("");
+    fields->Add("levels", &levels, "levels");
   }
   bool Check() const {
     CHECK_OPTION_LIMITS();
@@ -151,6 +155,50 @@ TEST(OptionsTest, DeclaredRangesAreCheckedAndNameWhereTheValueCameFrom) {
   options.mode = "xyz";
   EXPECT_TRUE(fields.RangeError().empty());
   EXPECT_FALSE(options.Check());
+}
+
+// Numbers set in code (a config or a flag cannot give them) must be finite,
+// with or without a declared range: what a Check() once wrote per field.
+TEST(OptionsTest, NonFiniteNumbersFailTheRangeCheck) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const double bad : {inf, -inf, nan}) {
+    ExampleOptions in_range_only;  // AtLeast(0.5) alone would take +inf
+    in_range_only.grid_cell_mm = bad;
+    EXPECT_FALSE(in_range_only.Check()) << bad;
+    ExampleOptions no_range;
+    no_range.levels = {0, bad};
+    EXPECT_FALSE(no_range.Check()) << bad;
+    OptionFields fields;
+    no_range.Register(&fields);
+    EXPECT_NE(fields.RangeError().find("option 'levels' = 0,"), std::string::npos)
+        << fields.RangeError();
+    EXPECT_NE(fields.RangeError().find(": item "), std::string::npos) << fields.RangeError();
+    EXPECT_NE(fields.RangeError().find("must be finite"), std::string::npos)
+        << fields.RangeError();
+  }
+  ExampleOptions finite;
+  finite.levels = {-1e300, 1e300};
+  EXPECT_TRUE(finite.Check());
+}
+
+// A list out of range names its first item that is (issue 52: `--methods
+// lgi,rbf` said which method was unknown before the check was declared).
+TEST(OptionsTest, AListNamesItsFirstItemOutOfRange) {
+  std::vector<std::string> kinds = {"a", "c", "d"};
+  std::vector<double> levels = {0.5, 2, 3};
+  OptionFields fields;
+  fields.Add("kinds", &kinds, "kinds").OneOf({"a", "b"});
+  fields.Add("levels", &levels, "levels").In(0, 1);
+  EXPECT_NE(fields.RangeError().find("option 'kinds' = a,c,d: item 'c' must be one of a, b"),
+            std::string::npos)
+      << fields.RangeError();
+  kinds = {"b", "a"};
+  EXPECT_NE(fields.RangeError().find("option 'levels' = 0.5,2,3: item 2 must be in [0, 1]"),
+            std::string::npos)
+      << fields.RangeError();
+  levels = {1, 0};
+  EXPECT_TRUE(fields.RangeError().empty()) << fields.RangeError();
 }
 
 }  // namespace

@@ -9,6 +9,23 @@
 #include <fmt/ranges.h>
 
 namespace hmc {
+
+std::string Base64Encode(const void* data, size_t size) {
+  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  std::string out;
+  out.reserve((size + 2) / 3 * 4);
+  for (size_t i = 0; i < size; i += 3) {
+    const uint32_t b = (uint32_t(bytes[i]) << 16) | (i + 1 < size ? uint32_t(bytes[i + 1]) << 8 : 0) |
+                       (i + 2 < size ? uint32_t(bytes[i + 2]) : 0);
+    out += table[(b >> 18) & 63];
+    out += table[(b >> 12) & 63];
+    out += i + 1 < size ? table[(b >> 6) & 63] : '=';
+    out += i + 2 < size ? table[b & 63] : '=';
+  }
+  return out;
+}
+
 namespace {
 
 // from_chars does not take the '+' that people and some writers put in.

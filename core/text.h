@@ -23,6 +23,10 @@
 
 namespace hmc {
 
+// Standard base64 (RFC 4648, with '=' padding) of `size` bytes: pictures
+// embedded in a page, binary data in the review's scripts.
+std::string Base64Encode(const void* data, size_t size);
+
 // Whole-token parses: false unless all of `token` is the number.
 bool ParseDouble(std::string_view token, double* value);
 bool ParseInteger(std::string_view token, long long* value);

@@ -133,3 +133,19 @@ TEST(TextTest, EditDistanceIsADistanceAndCountsSwapsAsOne) {
 
 }  // namespace
 }  // namespace hmc
+
+namespace hmc {
+namespace {
+
+// RFC 4648, section 10: the standard's own test vectors.
+TEST(Base64, EncodesTheRfcTestVectors) {
+  const std::vector<std::pair<std::string, std::string>> vectors = {
+      {"", ""}, {"f", "Zg=="}, {"fo", "Zm8="}, {"foo", "Zm9v"},
+      {"foob", "Zm9vYg=="}, {"fooba", "Zm9vYmE="}, {"foobar", "Zm9vYmFy"}};
+  for (const auto& [in, out] : vectors) EXPECT_EQ(Base64Encode(in.data(), in.size()), out) << in;
+  const unsigned char high[] = {0xff, 0xfe, 0x00};
+  EXPECT_EQ(Base64Encode(high, 3), "//4A");
+}
+
+}  // namespace
+}  // namespace hmc

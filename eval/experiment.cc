@@ -44,19 +44,22 @@ bool ParseDouble(const std::string& text, double* value) {
 
 void ExperimentOptions::Register(OptionFields* fields) {
   fields->Add("kinds", &kinds,
-              "material kinds, comma separated: dataset, combos, "
-              "performance, heldout, mixed");
+              "material kinds, comma separated")
+      .OneOf(TruthFrameKinds());
   fields->Add("noise_mm", &noise_mm,
               "marker noise levels (std per coordinate, mm), comma "
-              "separated");
+              "separated")
+      .In(0, 50);
   fields->Add("methods", &methods,
-              "solve methods, comma separated: " + SolveMethodList());
+              "solve methods, comma separated")
+      .OneOf(SolveMethodNames());
   fields->Add("default_frames", &default_frames,
-              "frames of a kind not listed in `frames`");
+              "frames of a kind not listed in `frames`")
+      .In(1, 100000);
   fields->Add("frames", &frames,
               "frames per kind, kind:count comma separated (dataset: all "
               "shapes)");
-  fields->Add("fps", &fps, "frame rate of the material (frames/s)");
+  fields->Add("fps", &fps, "frame rate of the material (frames/s)").Above(0).AtMost(1000);
   fields->Add("write_meshes", &write_meshes,
               "write truth.pc2 and <method>.pc2 per material");
   fields->Add("picture_kind", &picture_kind,
@@ -70,27 +73,10 @@ void ExperimentOptions::Register(OptionFields* fields) {
 
 bool ExperimentOptions::Check() const {
   if (!metrics.Check() || !solve.Check() || !picture.Check()) return false;
+  CHECK_OPTION_LIMITS();
   CHECK_OPTION(!kinds.empty());
-  const auto& valid_kinds = TruthFrameKinds();
-  for (const std::string& k : kinds) {
-    if (std::find(valid_kinds.begin(), valid_kinds.end(), k) ==
-        valid_kinds.end()) {
-      spdlog::error("invalid option: unknown kind '{}' in kinds", k);
-      return false;
-    }
-  }
   CHECK_OPTION(!noise_mm.empty());
-  for (const double n : noise_mm) CHECK_OPTION_IN(n, 0.0, 50.0);
   CHECK_OPTION(!methods.empty());
-  const auto& names = SolveMethodNames();
-  for (const std::string& m : methods) {
-    if (std::find(names.begin(), names.end(), m) == names.end()) {
-      spdlog::error("invalid option: unknown method '{}'; valid: {}", m,
-                    SolveMethodList());
-      return false;
-    }
-  }
-  CHECK_OPTION_IN(default_frames, 1, 100000);
   for (const std::string& entry : frames) {
     const size_t colon = entry.find(':');
     double v = 0;
@@ -102,7 +88,6 @@ bool ExperimentOptions::Check() const {
       return false;
     }
   }
-  CHECK_OPTION(fps > 0 && fps <= 1000);
   return true;
 }
 

@@ -4,7 +4,6 @@
 // image_width, image_height, heat_max_mm, color_map.
 #pragma once
 
-#include <cmath>
 #include <string>
 
 #include "core/logging.h"
@@ -21,23 +20,17 @@ struct PictureOptions {
   std::string color_map = "viridis";  // heat-map colours
 
   void Register(OptionFields* fields) {
-    fields->Add("image_width", &image_width, "picture panel width (px)");
-    fields->Add("image_height", &image_height, "picture panel height (px)");
+    fields->Add("image_width", &image_width, "picture panel width (px)").AtLeast(32);
+    fields->Add("image_height", &image_height, "picture panel height (px)").AtLeast(32);
     fields->Add("heat_max_mm", &heat_max_mm,
                 "top of the heat-map scale (mm); 0: the largest face-region "
-                "95th percentile of the pictured frames");
+                "95th percentile of the pictured frames")
+        .AtLeast(0);
     fields->Add("color_map", &color_map,
                 "heat-map colours: viridis, inferno, turbo");
   }
   bool Check() const {
-    if (image_width < 32 || image_height < 32) {
-      spdlog::error("image_width and image_height must be >= 32");
-      return false;
-    }
-    if (!(heat_max_mm >= 0) || !std::isfinite(heat_max_mm)) {
-      spdlog::error("heat_max_mm must be >= 0");
-      return false;
-    }
+    CHECK_OPTION_LIMITS();
     return true;
   }
 };

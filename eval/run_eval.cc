@@ -1,6 +1,7 @@
 #include "eval/run_eval.h"
 
 #include <algorithm>
+#include <map>
 
 #include <fmt/format.h>
 
@@ -17,14 +18,18 @@ namespace hmc {
 void EvalOptions::Register(OptionFields* fields) {
   metrics.Register(fields);
   fields->Add("uv_resolution", &uv_resolution,
-              "side of the UV-space error maps (px)");
+              "side of the UV-space error maps (px)")
+      .In(8, 8192);
+  fields->Add("markers_radius_mm", &markers_radius_mm,
+              "with --rays: the face's vertices within this of a listed marker are \"near\" it, "
+              "the others \"away\" (mm)")
+      .In(0, 1000);
   picture.Register(fields);
 }
 
 bool EvalOptions::Check() const {
-  if (!metrics.Check()) return false;
-  CHECK_OPTION_IN(uv_resolution, 8, 8192);
-  return picture.Check();
+  CHECK_OPTION_LIMITS();
+  return metrics.Check() && picture.Check();
 }
 
 FrameMatch MatchFrames(const MeshSequence& a, const MeshSequence& b) {
@@ -62,6 +67,77 @@ void WritePerFrameCsv(const std::filesystem::path& path,
         e.detail_face, e.detail_all);
   }
   WriteFileAtomic(path, csv);
+}
+
+// The error at listed (frame, marker) pairs and around them (EvalInput::
+// at_markers): per matched frame that lists any, the listed markers'
+// surface points, the face's vertices within `radius` (on the neutral) of
+// one of them ("near") and the other face vertices ("away"), and the other
+// markers' surface points. Pairs of frames not in both sequences or of
+// markers the actor does not have are counted as skipped.
+nlohmann::json AtMarkersJson(const Actor& actor, const std::vector<MatX3d>& truth,
+                             const std::vector<MatX3d>& recon, const std::vector<int>& numbers,
+                             const std::vector<uint8_t>& face,
+                             const std::vector<std::pair<int, std::string>>& pairs,
+                             double radius) {
+  std::map<std::string, int> marker_index;
+  for (size_t k = 0; k < actor.markers.size(); ++k) marker_index[actor.markers[k].name] = k;
+  std::map<int, std::vector<int>> listed;  // frame index -> markers
+  int skipped = 0;
+  for (const auto& [number, name] : pairs) {
+    const auto f = std::find(numbers.begin(), numbers.end(), number);
+    const auto k = marker_index.find(name);
+    if (f == numbers.end() || k == marker_index.end()) {
+      ++skipped;
+      continue;
+    }
+    listed[static_cast<int>(f - numbers.begin())].push_back(k->second);
+  }
+  const MatX3i& F = actor.neutral.F;
+  const MatX3d& X0 = actor.neutral.V;
+  std::vector<double> at;
+  double near_sum = 0, away_sum = 0, other_sum = 0;
+  int64_t near_n = 0, away_n = 0, other_n = 0;
+  for (auto& [f, markers] : listed) {
+    std::sort(markers.begin(), markers.end());
+    markers.erase(std::unique(markers.begin(), markers.end()), markers.end());
+    std::vector<Vec3> centres;
+    for (int k : markers) {
+      const SurfacePoint& s = actor.markers[k].point;
+      at.push_back((EvaluateSurfacePoint(s, F, recon[f]) - EvaluateSurfacePoint(s, F, truth[f])).norm());
+      centres.push_back(EvaluateSurfacePoint(s, F, X0));
+    }
+    for (size_t k = 0; k < actor.markers.size(); ++k) {
+      if (std::binary_search(markers.begin(), markers.end(), static_cast<int>(k))) continue;
+      const SurfacePoint& s = actor.markers[k].point;
+      other_sum += (EvaluateSurfacePoint(s, F, recon[f]) - EvaluateSurfacePoint(s, F, truth[f])).norm();
+      ++other_n;
+    }
+    for (int v = 0; v < X0.rows(); ++v) {
+      if (!face[v]) continue;
+      const double e = (recon[f].row(v) - truth[f].row(v)).norm();
+      const bool near = std::any_of(centres.begin(), centres.end(), [&](const Vec3& c) {
+        return (X0.row(v).transpose() - c).norm() <= radius;
+      });
+      (near ? near_sum : away_sum) += e;
+      ++(near ? near_n : away_n);
+    }
+  }
+  auto mean = [](double sum, int64_t n) { return n > 0 ? sum / n : 0.0; };
+  double at_sum = 0, at_max = 0;
+  for (double e : at) {
+    at_sum += e;
+    at_max = std::max(at_max, e);
+  }
+  return {{"marker_frames", at.size()},
+          {"frames", listed.size()},
+          {"skipped", skipped},
+          {"mean_mm", mean(at_sum, static_cast<int64_t>(at.size()))},
+          {"max_mm", at_max},
+          {"radius_mm", radius},
+          {"near_mean_mm", mean(near_sum, near_n)},
+          {"away_mean_mm", mean(away_sum, away_n)},
+          {"other_markers_mean_mm", mean(other_sum, other_n)}};
 }
 
 }  // namespace
@@ -158,6 +234,13 @@ EvalOutput RunEval(const EvalInput& input, const EvalOptions& options) {
       {"detail", "uniform Laplacian coordinates"},
       {"overall", PooledMetricsJson(metrics)},
       {"per_frame", per_frame}};
+  if (!input.at_markers.empty()) {
+    output.report["at_markers"] =
+        AtMarkersJson(actor, truth_frames, recon_frames, numbers,
+                      evaluator.face_mask(),
+                      input.at_markers, options.markers_radius_mm);
+    output.report["at_markers"]["file"] = input.at_markers_file.string();
+  }
 
   if (!input.out.empty()) {
     const std::filesystem::path& out = input.out;

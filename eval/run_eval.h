@@ -25,6 +25,8 @@ namespace hmc {
 struct EvalOptions {
   MeshMetricsOptions metrics;
   int uv_resolution = 512;  // side of the UV-space error maps (px)
+  double markers_radius_mm = 15.0;  // with EvalInput::at_markers: "near" is
+                                    // within this of a listed marker (mm)
   PictureOptions picture;
 
   void Register(OptionFields* fields);
@@ -47,6 +49,12 @@ struct EvalInput {
   std::filesystem::path out;  // output folder, or empty: no files
   std::vector<int> picture_frames;  // frame numbers to picture (with out);
                                     // empty: four spread over the sequence
+  // Optional (frame number, marker name) pairs, e.g. rays.csv's markers
+  // seen by one camera: the report's "at_markers" gives the error at their
+  // surface points and, in their frames, over the face near them and away
+  // from them and at the other markers (docs/formats.md, "hmc eval outputs").
+  std::vector<std::pair<int, std::string>> at_markers;
+  std::filesystem::path at_markers_file;  // names them in errors
 };
 
 struct EvalOutput {

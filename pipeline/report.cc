@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <system_error>
 #include <tuple>
+#include <utility>
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -24,9 +26,12 @@
 #include "core/image_io.h"
 #include "core/mesh_sequence.h"
 #include "core/render_mesh.h"
+#include "core/text.h"
 #include "core/tracks_2d.h"
+#include "core/options.h"
 #include "pipeline/run_pipeline.h"
 #include "pipeline/svg_plot.h"
+#include "stabilization/stabilize.h"
 #include "tracking/footage_reader.h"
 #include "tracking/track_eval.h"
 
@@ -35,23 +40,24 @@ namespace hmc {
 namespace fs = std::filesystem;
 
 void ReportOptions::Register(OptionFields* fields) {
-  fields->Add("contact_frames", &contact_frames, "footage frames on the contact sheet (0 = none)");
-  fields->Add("contact_scale", &contact_scale, "footage image scale on the contact sheet");
-  fields->Add("mesh_px", &mesh_px, "height of the mesh renders (px)");
-  fields->Add("error_max_mm", &error_max_mm, "top of the error colour scale (mm)");
+  fields->Add("contact_frames", &contact_frames, "footage frames on the contact sheet (0 = none)")
+      .In(0, 24);
+  fields->Add("contact_scale", &contact_scale, "footage image scale on the contact sheet")
+      .Above(0.05).AtMost(1);
+  fields->Add("mesh_px", &mesh_px, "height of the mesh renders (px)").In(64, 2048);
+  fields->Add("error_max_mm", &error_max_mm, "top of the error colour scale (mm)")
+      .Above(0).Below(100);
 }
 
 bool ReportOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& m) {
-    spdlog::error("report options: {}", m);
-    ok = false;
-  };
-  if (contact_frames < 0 || contact_frames > 24) fail("contact_frames must be in [0, 24]");
-  if (!(contact_scale > 0.05 && contact_scale <= 1)) fail("contact_scale must be in (0.05, 1]");
-  if (mesh_px < 64 || mesh_px > 2048) fail("mesh_px must be in [64, 2048]");
-  if (!(error_max_mm > 0 && error_max_mm < 100)) fail("error_max_mm must be in (0, 100)");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
+}
+
+std::string ReportWarning::Line() const { return stage + ": " + text; }
+
+nlohmann::json ReportWarning::ToJson() const {
+  return {{"stage", stage}, {"text", text}, {"markers", markers}, {"frames", frames}};
 }
 
 std::string ReportSummary::BriefReport() const {
@@ -66,26 +72,10 @@ bool Exists(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
-std::string Base64(const std::vector<uchar>& bytes) {
-  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    const uint32_t b = (uint32_t(bytes[i]) << 16) |
-                       (i + 1 < bytes.size() ? uint32_t(bytes[i + 1]) << 8 : 0) |
-                       (i + 2 < bytes.size() ? uint32_t(bytes[i + 2]) : 0);
-    out += table[(b >> 18) & 63];
-    out += table[(b >> 12) & 63];
-    out += i + 1 < bytes.size() ? table[(b >> 6) & 63] : '=';
-    out += i + 2 < bytes.size() ? table[b & 63] : '=';
-  }
-  return out;
-}
-
 std::string ImgTag(const cv::Mat& image, const std::string& alt) {
   std::vector<uchar> png;
   cv::imencode(".png", image, png);
-  return fmt::format("<img alt=\"{}\" src=\"data:image/png;base64,{}\">", HtmlEscape(alt), Base64(png));
+  return fmt::format("<img alt=\"{}\" src=\"data:image/png;base64,{}\">", HtmlEscape(alt), Base64Encode(png.data(), png.size()));
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -107,6 +97,7 @@ std::string SummaryCells(const nlohmann::json& j, int depth = 0) {
   if (!j.is_object()) return "";
   std::string out;
   for (const auto& [k, v] : j.items()) {
+    if (k == "run_inputs") continue;  // the same for every stage
     if (v.is_object() && depth < 1) {
       out += SummaryCells(v, depth + 1);
     } else if (v.is_number_float()) {
@@ -134,34 +125,18 @@ std::string FrameRuns(const std::vector<int>& frames) {
 // A list of bad frames ([{frame, reason}]) as warnings: one line per reason
 // with the frames it concerns ("stabilize: frames 3, 7-9 interpolated: ...").
 void FrameListWarnings(const nlohmann::json& list, const std::string& stage, const char* what,
-                       std::vector<std::string>* out) {
+                       std::vector<ReportWarning>* out) {
   std::map<std::string, std::vector<int>> by_reason;
   for (const auto& f : list) {
     if (f.is_object()) by_reason[f.value("reason", std::string())].push_back(f.value("frame", 0));
   }
   for (auto& [reason, frames] : by_reason) {
     std::sort(frames.begin(), frames.end());
-    out->push_back(fmt::format("{}: {} {} {}: {}", stage, frames.size() == 1 ? "frame" : "frames",
-                               FrameRuns(frames), what, reason));
-  }
-}
-
-// A stage summary's `warnings`, and its lists of bad frames
-// (`flagged_frames`, `interpolated_frames`).
-void CollectWarnings(const nlohmann::json& j, const std::string& stage,
-                     std::vector<std::string>* out) {
-  if (j.is_object()) {
-    for (const auto& [k, v] : j.items()) {
-      if (k == "warnings" && v.is_array()) {
-        for (const auto& w : v) {
-          out->push_back(stage + ": " + (w.is_string() ? w.get<std::string>() : w.dump()));
-        }
-      } else if ((k == "flagged_frames" || k == "interpolated_frames") && v.is_array()) {
-        FrameListWarnings(v, stage, k == "flagged_frames" ? "flagged" : "interpolated", out);
-      } else {
-        CollectWarnings(v, stage, out);
-      }
-    }
+    out->push_back({stage,
+                    fmt::format("{} {} {}: {}", frames.size() == 1 ? "frame" : "frames",
+                                FrameRuns(frames), what, reason),
+                    {},
+                    frames});
   }
 }
 
@@ -183,10 +158,22 @@ class ReportWriter {
     return work_ / stage / file;
   }
   void Section(const std::string& title) { html_ += "<h2>" + HtmlEscape(title) + "</h2>\n"; }
-  void Plot(const std::vector<PlotSeries>& series, PlotOptions o) { html_ += SvgLinePlot(series, o) + "\n"; }
+  // An SVG plot on the page, its data in plots.json.
+  void Plot(const std::vector<PlotSeries>& series, PlotOptions o);
   void Note(const std::string& text) { html_ += "<p>" + text + "</p>\n"; }
 
   void StageTable();
+  // A stage summary's `warnings`, its lists of bad frames
+  // (`flagged_frames`, `interpolated_frames`), stabilize's `bad_tracks`
+  // and triangulate's `gated_list`, at any depth.
+  void CollectWarnings(const nlohmann::json& j, const std::string& stage);
+  // Stabilize's bad tracks, each with the frames where its residual
+  // exceeds the stage's `bad_track_mm` (residuals.csv).
+  void BadTrackWarnings(const nlohmann::json& bad_tracks);
+  // The marker-frames the triangulation dropped (triangulation.csv rows
+  // not `ok`: gated, inconsistent, ...): one warning per marker and
+  // reason, the most frames first.
+  void TriangulationWarnings();
   void TrackSection();
   void TriangulateSection();
   void StabilizeSection();
@@ -195,9 +182,6 @@ class ReportWriter {
   void ContactSheet(const Actor& actor);
   // The contact sheet's frames, spread evenly over the reconstruction.
   std::set<int> ContactFrames() const;
-  // The box around `camera`'s named dots of the whole shot, with a margin,
-  // inside an image of `size` (the whole image without tracks).
-  cv::Rect DotsBox(const std::string& camera, cv::Size size) const;
 
   ReportInput in_;
   ReportOptions options_;
@@ -209,6 +193,113 @@ class ReportWriter {
   MeshSequence recon_;
   std::map<int, Eigen::VectorXd> vertex_error_;  // contact frame -> per-vertex error (mm)
 };
+
+void ReportWriter::Plot(const std::vector<PlotSeries>& series, PlotOptions o) {
+  html_ += SvgLinePlot(series, o) + "\n";
+  nlohmann::json plot = {{"title", o.title},
+                         {"x_label", o.x_label},
+                         {"y_label", o.y_label},
+                         {"y_from_zero", o.y_from_zero},
+                         {"series", nlohmann::json::array()}};
+  for (const PlotSeries& s : series) {
+    nlohmann::json points = nlohmann::json::array();
+    for (const auto& [x, y] : s.points) {
+      // Non-finite values break the line: null in JSON.
+      nlohmann::json point = nlohmann::json::array();
+      point.push_back(x);
+      if (std::isfinite(y)) {
+        point.push_back(y);
+      } else {
+        point.push_back(nullptr);
+      }
+      points.push_back(std::move(point));
+    }
+    plot["series"].push_back({{"name", s.name}, {"points", points}});
+  }
+  summary_.plots.push_back(plot);
+}
+
+void ReportWriter::CollectWarnings(const nlohmann::json& j, const std::string& stage) {
+  if (!j.is_object()) return;
+  for (const auto& [k, v] : j.items()) {
+    if (k == "warnings" && v.is_array()) {
+      for (const auto& w : v) {
+        summary_.warnings.push_back({stage, w.is_string() ? w.get<std::string>() : w.dump(), {}, {}});
+      }
+    } else if ((k == "flagged_frames" || k == "interpolated_frames") && v.is_array()) {
+      FrameListWarnings(v, stage, k == "flagged_frames" ? "flagged" : "interpolated",
+                        &summary_.warnings);
+    } else if (k == "bad_tracks" && v.is_array()) {
+      BadTrackWarnings(v);
+    } else if (k == "gated_list") {
+      // Listed from triangulation.csv with the other dropped rows
+      // (TriangulationWarnings).
+    } else {
+      CollectWarnings(v, stage);
+    }
+  }
+}
+
+void ReportWriter::BadTrackWarnings(const nlohmann::json& bad_tracks) {
+  if (bad_tracks.empty()) return;
+  double threshold = StabilizeOptions().bad_track_mm;
+  const fs::path used = Stage("stabilize", "options_used.yaml");
+  if (Exists(used)) {
+    const YAML::Node node = LoadYamlFile(used.string());
+    if (node["bad_track_mm"]) threshold = node["bad_track_mm"].as<double>();
+  }
+  std::map<std::string, std::vector<int>> over;  // marker -> frames over the threshold
+  const fs::path residuals = Stage("stabilize", "residuals.csv");
+  if (Exists(residuals)) {
+    ForEachCsvRow(residuals, {"frame", "marker", "residual_mm", "weight"},
+                  [&](const CsvRow& row) {
+                    if (row.Finite(2) > threshold) over[row.Text(1)].push_back(row.Int(0));
+                  });
+  }
+  for (const auto& b : bad_tracks) {
+    const std::string marker = b.value("marker", std::string());
+    std::vector<int>& frames = over[marker];
+    std::sort(frames.begin(), frames.end());
+    summary_.warnings.push_back(
+        {"stabilize",
+         fmt::format("track of {} flagged: median residual {:.2f} mm over {} mm{}", marker,
+                     b.value("median_residual_mm", 0.0), threshold,
+                     frames.empty() ? "" : fmt::format(", over it at frames {}", FrameRuns(frames))),
+         {marker},
+         frames});
+  }
+}
+
+void ReportWriter::TriangulationWarnings() {
+  const fs::path file = Stage("triangulate", "triangulation.csv");
+  if (!Exists(file)) return;
+  std::map<std::pair<std::string, std::string>, std::vector<int>> dropped;  // (marker, status) -> frames
+  const std::string text = ReadFile(file);
+  bool header = true;
+  ForEachLine(text, [&](int line, std::string_view l) {
+    if (Trim(l).empty()) return;
+    if (std::exchange(header, false)) return;
+    const std::vector<std::string> f = SplitCsvRecord(l, file, line);
+    int frame = 0;
+    if (f.size() < 3 || !ParseInt(f[0], &frame)) ThrowInputError(file, line, "expected frame,marker,status,...");
+    if (f[2] != "ok") dropped[{f[1], f[2]}].push_back(frame);
+  });
+  std::vector<std::pair<std::pair<std::string, std::string>, std::vector<int>>> sorted(dropped.begin(),
+                                                                                        dropped.end());
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [](const auto& a, const auto& b) { return a.second.size() > b.second.size(); });
+  for (auto& [key, frames] : sorted) {
+    std::sort(frames.begin(), frames.end());
+    const std::string why = key.second == "gated"          ? "a view's residual over the gate: a wrong name or a bad detection"
+                            : key.second == "inconsistent" ? "the views' rays miss by more than the pixel noise explains"
+                                                           : key.second;
+    summary_.warnings.push_back({"triangulate",
+                                 fmt::format("{} dropped ({}) at {} {} ({})", key.first, key.second,
+                                             frames.size() == 1 ? "frame" : "frames", FrameRuns(frames), why),
+                                 {key.first},
+                                 frames});
+  }
+}
 
 void ReportWriter::StageTable() {
   Section("Stages");
@@ -227,12 +318,25 @@ void ReportWriter::StageTable() {
     } catch (const std::exception& e) {
       ThrowInputError(file, 0, "not JSON: {}", e.what());
     }
-    CollectWarnings(s, stage, &summary_.warnings);
+    CollectWarnings(s, stage);
     const nlohmann::json report = s.value("report", nlohmann::json::object());
     const bool skipped = report.contains("skipped");
+    std::string cells = SummaryCells(report);
+    if (cells.empty()) {
+      // A stage whose command writes no summary of its own (calibrate's
+      // is report.json, the solve's diagnostics.json): what it wrote.
+      const nlohmann::json outputs = s.value("outputs", nlohmann::json::object());
+      for (const auto& [file, hash] : outputs.items()) {
+        std::error_code ec;
+        const auto bytes = fs::file_size(work_ / stage / file, ec);
+        cells += fmt::format("<span class=kv>{} ({})</span> ", HtmlEscape(file),
+                             ec ? std::string("missing") : fmt::format("{:.1f} kB", bytes / 1e3));
+      }
+      if (cells.empty()) cells = "no outputs recorded";
+    }
     html_ += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.1f} s</td><td>{}</td></tr>\n", stage,
                          skipped ? "skipped: " + HtmlEscape(report["skipped"].get<std::string>()) : "done",
-                         s.value("seconds", 0.0), SummaryCells(report));
+                         s.value("seconds", 0.0), cells);
   }
   html_ += "</table>\n";
 }
@@ -391,18 +495,11 @@ void ReportWriter::SolveSection(const Actor& actor) {
   if (Exists(diag)) {
     PlotSeries outside{"outside their data (%)", {}}, residual{"mean residual (0.01 mm)", {}};
     nlohmann::json flagged = nlohmann::json::array();
-    // Each frame's record is used as the parser completes it, then dropped:
-    // the file grows with the shot (800 MB for 2,000 frames of a small
-    // actor), its parsed tree would be several times that.
-    auto frame_done = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& f) {
-      if (event != nlohmann::json::parse_event_t::object_end || !f.contains("frame") ||
-          !f.contains("bundles")) {
-        return true;
-      }
+    ForEachSolveFrame(diag, [&](const nlohmann::json& f) {
       const int frame = f.value("frame", 0);
       if (!f.value("ok", false)) {
         flagged.push_back({{"frame", frame}, {"reason", f.value("reason", std::string())}});
-        return false;
+        return;
       }
       int n = 0, projected = 0;
       double res = 0;
@@ -416,15 +513,7 @@ void ReportWriter::SolveSection(const Actor& actor) {
         outside.points.emplace_back(frame, 100.0 * projected / n);
         residual.points.emplace_back(frame, 100.0 * res / n);
       }
-      return false;
-    };
-    std::ifstream in(diag);
-    try {
-      const nlohmann::json rest = nlohmann::json::parse(in, frame_done);  // the frames dropped
-      (void)rest;
-    } catch (const nlohmann::json::exception& e) {
-      ThrowInputError(diag, 0, "not JSON: {}", e.what());
-    }
+    });
     FrameListWarnings(flagged, "solve", "flagged", &summary_.warnings);
     Plot({outside, residual}, {"solve: bundles outside their data, bundle residual", "frame", "", 640, 220, true});
   }
@@ -480,24 +569,6 @@ void ReportWriter::SolveSection(const Actor& actor) {
   html_ += "<p>Mean error per vertex over the shot, on the neutral:</p>" + ImgTag(heat, "mean error") + "\n";
 }
 
-cv::Rect ReportWriter::DotsBox(const std::string& camera, cv::Size size) const {
-  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
-  for (const Track2d& t : tracks_) {
-    if (t.camera != camera) continue;
-    x0 = std::min(x0, t.pixel.x());
-    y0 = std::min(y0, t.pixel.y());
-    x1 = std::max(x1, t.pixel.x());
-    y1 = std::max(y1, t.pixel.y());
-  }
-  const cv::Rect whole(0, 0, size.width, size.height);
-  if (x0 > x1) return whole;
-  const double margin = 0.12 * std::max(x1 - x0, y1 - y0) + 10;
-  const cv::Rect box(cv::Point(static_cast<int>(x0 - margin), static_cast<int>(y0 - margin)),
-                     cv::Point(static_cast<int>(x1 + margin), static_cast<int>(y1 + margin)));
-  const cv::Rect clipped = box & whole;
-  return clipped.area() > 0 ? clipped : whole;
-}
-
 std::set<int> ReportWriter::ContactFrames() const {
   std::set<int> chosen;
   if (options_.contact_frames == 0 || recon_.frames.empty()) return chosen;
@@ -539,7 +610,7 @@ void ReportWriter::ContactSheet(const Actor& actor) {
         }
         // Framed on the camera's named dots over the shot (the fisheye sees
         // far more than the face), so the dots can be told apart.
-        const cv::Rect crop = DotsBox(names[c], bgr.size());
+        const cv::Rect crop = NamedDotsBox(tracks_, names[c], bgr.size());
         bgr = bgr(crop).clone();
         const double s = static_cast<double>(options_.mesh_px) / bgr.rows;
         cv::resize(bgr, bgr, cv::Size(), s, s, s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
@@ -565,7 +636,7 @@ void ReportWriter::ContactSheet(const Actor& actor) {
       rows.push_back(ComposeLabelledPanels(panels, labels));
     }
   } catch (const InputError& e) {
-    summary_.warnings.push_back(std::string("report: no contact sheet: ") + e.what());
+    summary_.warnings.push_back({"report", std::string("no contact sheet: ") + e.what(), {}, {}});
     return;
   }
   if (rows.empty()) return;
@@ -587,6 +658,7 @@ ReportSummary ReportWriter::Write() {
   EnsureDirectory(in_.out);
   summary_.has_truth = Exists(shot_ / "truth.pc2") || Exists(shot_ / "dots_2d.csv");
   StageTable();
+  TriangulationWarnings();
   TrackSection();
   TriangulateSection();
   StabilizeSection();
@@ -596,7 +668,11 @@ ReportSummary ReportWriter::Write() {
   std::string warnings = "<h2>Warnings</h2>\n";
   if (summary_.warnings.empty()) warnings += "<p>none</p>\n";
   warnings += "<ul>\n";
-  for (const std::string& w : summary_.warnings) warnings += "<li>" + HtmlEscape(w) + "</li>\n";
+  nlohmann::json warning_list = nlohmann::json::array();
+  for (const ReportWarning& w : summary_.warnings) {
+    warnings += "<li>" + HtmlEscape(w.Line()) + "</li>\n";
+    warning_list.push_back(w.ToJson());
+  }
   warnings += "</ul>\n";
   std::string page = fmt::format(
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>hmc run report: {}</title>\n"
@@ -610,6 +686,8 @@ ReportSummary ReportWriter::Write() {
       HtmlEscape(actor.name), summary_.has_truth ? " (ground truth present)" : "");
   page += warnings + html_ + "</body></html>\n";
   WriteFileAtomic(fs::path(in_.out) / "report.html", page);
+  WriteFileAtomic(fs::path(in_.out) / "plots.json",
+                  nlohmann::json{{"plots", summary_.plots}, {"warnings", warning_list}}.dump() + "\n");
   if (!summary_.accuracy.is_null()) {
     WriteFileAtomic(fs::path(in_.out) / "accuracy.json", summary_.accuracy.dump(1) + "\n");
   }
@@ -617,6 +695,45 @@ ReportSummary ReportWriter::Write() {
 }
 
 }  // namespace
+
+void ForEachSolveFrame(const fs::path& diagnostics, const std::function<void(const nlohmann::json&)>& body) {
+  // Each frame's record is used as the parser completes it, then dropped:
+  // the file grows with the shot (800 MB for 2,000 frames of a small
+  // actor), its parsed tree would be several times that.
+  auto frame_done = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& f) {
+    if (event != nlohmann::json::parse_event_t::object_end || !f.contains("frame") || !f.contains("bundles")) {
+      return true;
+    }
+    body(f);
+    return false;
+  };
+  std::ifstream in(diagnostics);
+  try {
+    const nlohmann::json rest = nlohmann::json::parse(in, frame_done);  // the frames dropped
+    (void)rest;
+  } catch (const nlohmann::json::exception& e) {
+    ThrowInputError(diagnostics, 0, "not JSON: {}", e.what());
+  }
+}
+
+cv::Rect NamedDotsBox(const std::vector<Track2d>& tracks, const std::string& camera, cv::Size size) {
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (const Track2d& t : tracks) {
+    if (t.camera != camera) continue;
+    x0 = std::min(x0, t.pixel.x());
+    y0 = std::min(y0, t.pixel.y());
+    x1 = std::max(x1, t.pixel.x());
+    y1 = std::max(y1, t.pixel.y());
+  }
+  const cv::Rect whole(0, 0, size.width, size.height);
+  if (x0 > x1) return whole;
+  const double margin = 0.12 * std::max(x1 - x0, y1 - y0) + 10;
+  const cv::Rect box(cv::Point(static_cast<int>(x0 - margin), static_cast<int>(y0 - margin)),
+                     cv::Point(static_cast<int>(x1 + margin), static_cast<int>(y1 + margin)));
+  const cv::Rect clipped = box & whole;
+  return clipped.area() > 0 ? clipped : whole;
+}
+
 
 ReportSummary WriteRunReport(const ReportInput& input, const ReportOptions& options) {
   return ReportWriter(input, options).Write();

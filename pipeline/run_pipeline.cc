@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -20,6 +21,7 @@
 #include "core/text.h"
 #include "pipeline/workspace.h"
 #include "tracking/footage_reader.h"
+#include "tracking/video_timecode.h"
 
 namespace hmc {
 
@@ -35,6 +37,7 @@ void RunOptions::Register(OptionFields* fields) {
   fields->Add("from", &from, "first stage to redo even if complete (\"\" = redo only what changed)");
   fields->Add("to", &to, "last stage to run");
   footage.Register(fields);
+  day.Register(fields);
   fields->Add("reference_frame", &reference_frame,
               "frame where the actor is near neutral, where track names the dots (0 = track's "
               "default, configs/track.yaml)")
@@ -100,6 +103,9 @@ const std::map<std::pair<std::string, std::string>, std::string>& RunWideKeys() 
       }
     }
     k[{"track", "reference_frame"}] = "run.reference_frame";
+    for (const char* stage : {"track", "triangulate", "stabilize", "jaw", "solve"}) {
+      k[{stage, "markers"}] = "run.markers";
+    }
     return k;
   }();
   return keys;
@@ -116,6 +122,23 @@ std::string RunSummary::BriefReport() const {
 }
 
 namespace {
+
+// One field of the header of `hmc solve --diagnostics` (docs/formats.md,
+// "Solve diagnostics": one header field per line before the frames), read
+// without parsing the frames, which a long shot makes large. null when the
+// field is not there.
+nlohmann::json DiagnosticsHeaderField(const fs::path& path, const std::string& name) {
+  std::ifstream in(path);
+  const std::string prefix = " \"" + name + "\": ";
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(" \"frames\": ", 0) == 0) break;
+    if (line.rfind(prefix, 0) != 0) continue;
+    std::string value = line.substr(prefix.size());
+    if (!value.empty() && value.back() == ',') value.pop_back();
+    return nlohmann::json::parse(value, nullptr, /*allow_exceptions=*/false);
+  }
+  return nullptr;
+}
 
 // The run config: a mapping from stage name to that stage's options (the
 // keys of configs/<stage>.yaml). Each section is handed to the stage's
@@ -185,8 +208,18 @@ class Pipeline {
   void AddFootageInputs(StageKey* key) const;
   // `--fps F` for the solve and the exports: the run's `fps` if set, else
   // the footage's frame rate (none for an image sequence, which declares
-  // none: the commands' default).
-  std::vector<std::string> FrameRateFlags() const;
+  // none: the commands' default); and `--timecode TC` for the exports when
+  // cam0's video carries one (docs/formats.md, "Footage").
+  struct FootageTiming {
+    std::vector<std::string> fps;
+    std::vector<std::string> timecode;
+  };
+  FootageTiming FootageTimingFlags() const;
+  // `args` with `--markers DAY_MARKERS` when the run has the day's markers.
+  std::vector<std::string> WithMarkers(std::vector<std::string> args) const {
+    if (!options_.day.markers.empty()) args.insert(args.end(), {"--markers", options_.day.markers});
+    return args;
+  }
 
   RunInput input_;
   RunOptions options_;
@@ -225,14 +258,29 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
   }
 }
 
-std::vector<std::string> Pipeline::FrameRateFlags() const {
-  if (options_.fps > 0) return {"--fps", fmt::format("{}", options_.fps)};
+Pipeline::FootageTiming Pipeline::FootageTimingFlags() const {
+  FootageTiming timing;
   const HelmetRig rig = ReadCalibration(input_.calibration);
   std::vector<std::string> names;
   for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  const double fps = FootageReader(input_.shot, names, options_.footage).fps();
-  if (!(fps > 0)) return {};  // an image sequence: the commands' default
-  return {"--fps", fmt::format("{}", fps)};
+  const FootageReader reader(input_.shot, names, options_.footage);
+  const double fps = options_.fps > 0 ? options_.fps : reader.fps();
+  // An image sequence: the commands' default rate.
+  if (fps > 0) {
+    timing.fps = {"--fps", fmt::format("{}", fps)};
+  } else {
+    spdlog::info("run: the footage (an image sequence) declares no frame rate: the mesh "
+                 "caches play at 30 frames/s (set run.fps, --fps, for the camera's own)");
+  }
+  if (fs::is_regular_file(reader.source(0))) {
+    const std::string timecode = ReadVideoTimecode(reader.source(0));
+    if (!timecode.empty()) {
+      spdlog::info("run: {} starts at timecode {}: the mesh caches that keep one carry it",
+                   reader.source(0).string(), timecode);
+      timing.timecode = {"--timecode", timecode};
+    }
+  }
+  return timing;
 }
 
 nlohmann::json Pipeline::RunCommand(const std::string& stage, std::vector<std::string> args,
@@ -292,17 +340,22 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     if (options_.reference_frame > 0) {
       key.AddInputText("reference_frame", std::to_string(options_.reference_frame));
     }
+    if (!input_.fixes.empty()) key.AddInput("fixes", input_.fixes);
     plan.run = [this, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"track", "--shot", input_.shot, "--calibration",
                                        calibration.string(), "--actor", input_.actor, "--out",
                                        (dir / "tracks_2d.csv").string(), "--diagnostics",
-                                       (dir / "diagnostics.json").string()};
+                                       (dir / "diagnostics.json").string(),
+                                       // hmc review's footage proxies, made as the footage is
+                                       // decoded for the tracking (docs/review.md)
+                                       "--proxies", (dir / "proxies").string()};
       const std::vector<std::string> footage = FootageFlags();
       args.insert(args.end(), footage.begin(), footage.end());
       if (options_.reference_frame > 0) {
         args.insert(args.end(), {"--reference_frame", std::to_string(options_.reference_frame)});
       }
-      return RunCommand("track", args, dir);
+      if (!input_.fixes.empty()) args.insert(args.end(), {"--fixes", input_.fixes});
+      return RunCommand("track", WithMarkers(args), dir);
     };
   } else if (stage == "triangulate") {
     key.AddInput("tracks", Out("track", "tracks_2d.csv"));
@@ -312,10 +365,10 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     // from its neutral's curvature (docs/calibration.md).
     plan.run = [this, calibration](const fs::path& dir) {
       return RunCommand("triangulate",
-                        {"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
+                        WithMarkers({"triangulate", "--tracks", Out("track", "tracks_2d.csv").string(),
                          "--calibration", calibration.string(), "--actor", input_.actor,
                          "--out", (dir / "bundles_helmet.csv").string(), "--diagnostics",
-                         (dir / "triangulation.csv").string()},
+                         (dir / "triangulation.csv").string()}),
                         dir);
     };
   } else if (stage == "stabilize") {
@@ -323,8 +376,8 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     key.AddInputText("actor", actor_hash_);
     plan.run = [this](const fs::path& dir) {
       return RunCommand("stabilize",
-                        {"stabilize", "--bundles", Out("triangulate", "bundles_helmet.csv").string(),
-                         "--actor", input_.actor, "--out", dir.string()},
+                        WithMarkers({"stabilize", "--bundles", Out("triangulate", "bundles_helmet.csv").string(),
+                         "--actor", input_.actor, "--out", dir.string()}),
                         dir);
     };
   } else if (stage == "jaw") {
@@ -337,8 +390,8 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
     plan.run = [this](const fs::path& dir) {
       nlohmann::json report =
           RunCommand("jaw",
-                     {"jaw", "--bundles", Out("stabilize", "bundles.csv").string(), "--actor",
-                      input_.actor, "--out", (dir / "jaw.csv").string()},
+                     WithMarkers({"jaw", "--bundles", Out("stabilize", "bundles.csv").string(),
+                                  "--actor", input_.actor, "--out", (dir / "jaw.csv").string()}),
                      dir);
       // hmc jaw names its summary after --out: it is the stage's, as a
       // summary.json of the command would be (workspace.h).
@@ -349,27 +402,59 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
   } else if (stage == "solve") {
     key.AddInput("bundles", Out("stabilize", "bundles.csv"));
     if (actor_has_jaw_) key.AddInput("jaw", Out("jaw", "jaw.csv"));
+    // Markers seen by one camera constrain the solved mesh (docs/method.md,
+    // "Constraints after the solve"), placed in head space by the head
+    // poses.
+    const bool rays = fs::is_regular_file(Out("triangulate", "rays.csv"));
+    if (rays) {
+      key.AddInput("rays", Out("triangulate", "rays.csv"));
+      key.AddInput("head_from_helmet", Out("stabilize", "head_from_helmet.csv"));
+      key.AddInput("calibration", calibration);
+    }
     key.AddInputText("actor", actor_hash_);
     key.AddInputText("export", options_.export_formats);
     key.AddInputText("fps", fmt::format("{}", options_.fps));
-    plan.run = [this](const fs::path& dir) {
+    plan.run = [this, rays, calibration](const fs::path& dir) {
       std::vector<std::string> args = {"solve", "--actor", input_.actor, "--bundles",
                                        Out("stabilize", "bundles.csv").string(), "--out",
                                        (dir / "mesh.pc2").string(), "--diagnostics",
                                        (dir / "diagnostics.json").string(), "--topology",
                                        (dir / "neutral.obj").string()};
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      // The actor's units fitted to the solved meshes (docs/method.md,
+      // "Animation curves"): the animators' controls; the USD rig with the
+      // meshes' USD export.
+      args.insert(args.end(), {"--weights", (dir / "weights.csv").string(), "--curves",
+                               (dir / "curves.csv").string()});
+      const std::vector<std::string> formats = ExportFormats(options_.export_formats);
+      if (std::find(formats.begin(), formats.end(), "usda") != formats.end()) {
+        args.insert(args.end(), {"--unit_rig", (dir / "unit_rig.usda").string()});
+      }
+      if (rays) {
+        args.insert(args.end(), {"--rays", Out("triangulate", "rays.csv").string(),
+                                 "--head_from_helmet",
+                                 Out("stabilize", "head_from_helmet.csv").string(),
+                                 "--calibration", calibration.string()});
+      }
+      args = WithMarkers(args);
       // The footage's frame rate, so that the exports play at the shot's
       // speed (a 60 fps helmet camera's mesh is not written at 30).
-      const std::vector<std::string> fps = FrameRateFlags();
-      args.insert(args.end(), fps.begin(), fps.end());
+      const FootageTiming timing = FootageTimingFlags();
+      args.insert(args.end(), timing.fps.begin(), timing.fps.end());
       nlohmann::json report = RunCommand("solve", args, dir);
+      if (rays) report["rays"] = DiagnosticsHeaderField(dir / "diagnostics.json", "rays");
+      report["unit_fit"] = DiagnosticsHeaderField(dir / "diagnostics.json", "unit_fit");
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),
                                             target.string(), "--topology",
                                             (dir / "neutral.obj").string()};
+        // An image sequence's caches at the commands' default rate, said
+        // once here rather than as a warning of every export.
+        const std::vector<std::string> fps =
+            timing.fps.empty() ? std::vector<std::string>{"--fps", "30"} : timing.fps;
         convert.insert(convert.end(), fps.begin(), fps.end());
+        convert.insert(convert.end(), timing.timecode.begin(), timing.timecode.end());
         RunCommand("solve", convert, dir);
       }
       return report;
@@ -400,7 +485,9 @@ RunSummary Pipeline::Run() {
     ThrowInputError(input_.calibration, 0, "hmc run needs a rig of two cameras, the file has {}",
                     rig.cameras.size());
   }
-  const std::shared_ptr<const Actor> loaded = LoadActorShared(input_.actor);
+  // With the day's markers, the actor's hash is theirs too: every stage that
+  // reads the actor runs again for another marker set.
+  const std::shared_ptr<const Actor> loaded = LoadActorForDay(input_.actor, options_.day.markers);
   const Actor& actor = *loaded;
   actor_hash_ = HashHex(actor.content_hash);
   actor_has_jaw_ = actor.jaw_rig.has_value();
@@ -432,7 +519,15 @@ RunSummary Pipeline::Run() {
       run.status = "skipped";
       run.note = plan.skip_reason;
     } else {
-      work_.RunStage(plan.key, plan.run);
+      // Each stage's report names the run's inputs, so that `hmc review
+      // --work WORK` finds the footage and the actor (docs/formats.md,
+      // "Shot workspace").
+      work_.RunStage(plan.key, [&](const fs::path& dir) {
+        nlohmann::json report = plan.run(dir);
+        report["run_inputs"] = {{"shot", fs::absolute(input_.shot).lexically_normal().string()},
+                                {"actor", fs::absolute(input_.actor).lexically_normal().string()}};
+        return report;
+      });
       run.status = "done";
     }
     ReturnFreedMemory();

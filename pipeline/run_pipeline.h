@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "tracking/footage_reader.h"
 
@@ -35,6 +36,7 @@ struct RunOptions {
   int reference_frame = 0;  // frame where the actor is near neutral, for track (0 = track's own default)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
   std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
+  DayMarkersOptions day;    // markers: the day's markers, passed to every stage that loads the actor
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)
 
   void Register(OptionFields* fields);
@@ -50,6 +52,7 @@ struct RunInput {
   std::string actor;        // actor package
   std::string calibration;  // nominal calibration.yaml (or the rig's calibration)
   std::string out;          // workspace folder WORK
+  std::string fixes;        // track_fixes.csv for the track stage (hmc review; "" = none)
   std::string config;       // run config: `run:` (RunOptions, read by hmc run) and a section per stage with that stage's options ("" = defaults)
   // Checks one stage's section of `config` as that stage's command would
   // read it (keys, types, ranges; throws InputError naming the file and

@@ -147,6 +147,10 @@ Workspace::Workspace(fs::path root, const std::vector<std::string>& stages)
     for (fs::directory_iterator it(root_, ec), end; !ec && it != end; it.increment(ec)) {
       const std::string name = it->path().filename().string();
       if (name == kMark || name == kLock) continue;
+      // A run killed while it wrote the mark leaves the mark's temporary
+      // (`..hmc_workspace.tmp.PID.N`) and no mark: hmc's own, removed when
+      // the mark is written below.
+      if (name.rfind(std::string(".") + kMark + ".tmp.", 0) == 0) continue;
       if (name.front() == '.' && name.size() > 9 && name.compare(name.size() - 8, 8, ".partial") == 0 &&
           is_stage(name.substr(1, name.size() - 9))) {
         continue;  // a killed run's partial stage: removed when the stage runs

@@ -99,6 +99,25 @@ std::string ErrorOfClaim(const fs::path& root) {
   return "no error";
 }
 
+// A run killed while it wrote the workspace's mark left the mark's
+// temporary and no mark; the next run claims the folder (before: "holds 1
+// file(s) hmc run did not write (..hmc_workspace.tmp.PID.0)", seen in
+// RunTest.KilledAtRandomMomentsResumesToTheSameBytes).
+TEST(WorkspaceTest, AKillWhileTheMarkWasWrittenLeavesAClaimableFolder) {
+  TempDir dir;
+  const fs::path w = dir.path() / "W";
+  fs::create_directories(w);
+  WriteFileAtomic(w / "..hmc_workspace.tmp.123.0", "hmc run wor");
+  EXPECT_EQ(ErrorOfClaim(w), "no error");
+  EXPECT_TRUE(fs::exists(w / ".hmc_workspace"));
+  EXPECT_FALSE(fs::exists(w / "..hmc_workspace.tmp.123.0"));
+  // Another file of that shape but not the mark's is still not hmc's.
+  const fs::path v = dir.path() / "V";
+  fs::create_directories(v);
+  WriteFileAtomic(v / ".notes.txt.tmp.123.0", "x");
+  EXPECT_NE(ErrorOfClaim(v).find(".notes.txt.tmp.123.0"), std::string::npos);
+}
+
 // Issue 45, item 3: a folder holding files hmc run did not write is
 // refused before any work, and every file is left where it was (before:
 // `hmc run --out D` deleted D/track/my_notes.txt and D/report/*.pdf).

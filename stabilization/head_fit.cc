@@ -61,12 +61,6 @@ class ExpressionProjection {
   Eigen::LLT<Eigen::MatrixXd> factor_;
 };
 
-Eigen::Matrix3d Skew(const Vec3& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 // How far `to` moves the furthest of the points a from where `from` put
 // them (mm).
 double FurthestMoveMm(const Rigid3& from, const Rigid3& to, const Eigen::Matrix3Xd& a) {
@@ -215,6 +209,12 @@ HeadFitResult FitHeadAndExpression(const Eigen::Matrix3Xd& a, const Eigen::Matri
   out.ok = true;
   out.head_from_helmet = t;
   return out;
+}
+
+Mat3 Skew(const Vec3& v) {
+  Mat3 m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
 }
 
 }  // namespace hmc

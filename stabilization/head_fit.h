@@ -36,6 +36,9 @@
 
 namespace hmc {
 
+// The cross-product matrix: Skew(v) * x = v.cross(x).
+Mat3 Skew(const Vec3& v);
+
 struct HeadFitOptions {
   RobustLoss loss = RobustLoss::kCauchy;
   double loss_scale_mm = 0.5;    // residual scale of the robust loss (mm)

@@ -17,6 +17,7 @@
 namespace hmc {
 
 void JawOptions::Register(OptionFields* fields) {
+  day.Register(fields);
   fields->Add("smoothness", &smoothness,
               "mu: temporal prior on second differences (mm^2 per deg^2, or per mm^2 for "
               "protrude; 0 = off)")

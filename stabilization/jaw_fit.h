@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "core/frame_data.h"
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "stabilization/marker_model.h"
 
@@ -42,6 +43,7 @@ namespace hmc {
 
 // What to optimise.
 struct JawOptions {
+  DayMarkersOptions day;         // markers: the day's markers (core/day_markers.h)
   double smoothness = 0.01;      // mu: temporal prior on second differences (mm^2 per deg^2, or per mm^2 for protrude)
   double bound_margin = 0.25;    // bounds: the dataset's jaw range widened by this fraction of it (at least 1 deg / 1 mm) on each side
   double ridge = 0.1;            // lambda: ridge on the global shape weights (mm^2 per unit weight^2)

@@ -9,6 +9,7 @@
 #include <Eigen/SparseCore>
 
 #include "core/error_stats.h"
+#include "stabilization/head_fit.h"
 
 namespace hmc {
 
@@ -39,12 +40,12 @@ Rigid3 Exp(const Vec6& x, const Vec3& c) {
 
 }  // namespace
 
-PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& measurements,
-                                          double tolerance_mm, const Vec3& center,
-                                          double lever_mm) {
-  PoseTrajectoryResult out;
+std::vector<Rigid3> SmoothPoseTrajectory(const std::vector<PoseMeasurement>& measurements,
+                                         double tolerance_mm, const Vec3& center,
+                                         double lever_mm) {
+  std::vector<Rigid3> poses;
   const int n = static_cast<int>(measurements.size());
-  for (const PoseMeasurement& m : measurements) out.poses.push_back(m.pose);
+  for (const PoseMeasurement& m : measurements) poses.push_back(m.pose);
   // Parameters scaled to mm (rotation times the lever) so that the six are
   // comparable: x' = S x, S = diag(lever x 3, 1 x 3).
   Vec6 scale;
@@ -53,8 +54,7 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
   // The measurements' information is about the origin: (omega, v_origin)
   // = (omega, v + c x omega).
   Mat6 to_origin = Mat6::Identity();
-  to_origin.block<3, 3>(3, 0) << 0, -center.z(), center.y(), center.z(), 0, -center.x(),
-      -center.y(), center.x(), 0;
+  to_origin.block<3, 3>(3, 0) = Skew(center);
   std::vector<Mat6> lambda(n, Mat6::Zero());  // scaled Lambda_f about the centre
   int measured = 0;
   for (int f = 0; f < n; ++f) {
@@ -63,7 +63,7 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
     lambda[f] = s_inv * (to_origin.transpose() * m.information * to_origin / m.variance_mm2) * s_inv;
     ++measured;
   }
-  if (measured < 3) return out;
+  if (measured < 3) return poses;
 
   // Sigma_p by the method of moments over consecutive measured frames,
   // the better-measured half of the pairs (the smaller trace of the two
@@ -84,7 +84,7 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
                      lambda[f + 1].fullPivLu().inverse().diagonal();
     pairs.push_back({u.cwiseAbs2() / gap, var / gap, var.sum()});
   }
-  if (pairs.empty()) return out;
+  if (pairs.empty()) return poses;
   std::sort(pairs.begin(), pairs.end(),
             [](const Pair& x, const Pair& y) { return x.trace < y.trace; });
   pairs.resize((pairs.size() + 1) / 2);
@@ -109,10 +109,8 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
     const double total = UpperMedian(&increments[j]) / kChiSquare1Median;
     process_var[j] = std::max({floor, kLeast * total, total - UpperMedian(&noise[j])});
   }
-  out.process_sigma = process_var.cwiseSqrt().cwiseProduct(scale.cwiseInverse());
 
   // Gauss-Newton on the left perturbations, relinearised.
-  std::vector<Rigid3>& poses = out.poses;
   for (int iteration = 0; iteration < 50; ++iteration) {
     std::vector<Eigen::Triplet<double>> triplets;
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(6 * n);
@@ -143,7 +141,7 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
     Eigen::SparseMatrix<double> a(6 * n, 6 * n);
     a.setFromTriplets(triplets.begin(), triplets.end());
     const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(a);
-    if (solver.info() != Eigen::Success) return out;
+    if (solver.info() != Eigen::Success) return poses;
     const Eigen::VectorXd delta = solver.solve(rhs);
     double largest = 0;
     for (int f = 0; f < n; ++f) {
@@ -151,10 +149,9 @@ PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& me
       largest = std::max(largest, d.head<3>().norm() + d.tail<3>().norm());
       poses[f] = Exp(scale.cwiseInverse().cwiseProduct(d), center) * poses[f];
     }
-    out.iterations = iteration + 1;
     if (largest <= tolerance_mm) break;
   }
-  return out;
+  return poses;
 }
 
 }  // namespace hmc

@@ -39,20 +39,14 @@ struct PoseMeasurement {
   double variance_mm2 = 0;     // sigma_f^2 (floored by the caller)
 };
 
-struct PoseTrajectoryResult {
-  std::vector<Rigid3> poses;   // one per measurement
-  Eigen::Matrix<double, 6, 1> process_sigma = Eigen::Matrix<double, 6, 1>::Zero();  // sqrt diag Sigma_p (rad, mm)
-  int iterations = 0;
-};
-
-// Poses of every frame under the temporal prior; fewer than 3 measured
+// Poses of every frame (one per measurement) under the temporal prior; fewer than 3 measured
 // frames: the poses as given. `tolerance_mm`: relinearise until a step moves
 // no point at `lever_mm` from `center` further.
 // `center`, `lever_mm`: the perturbations are parameterised as rotations
 // about `center` (the markers' centroid, where rotation and translation
 // are least correlated), scaled by `lever_mm` (their RMS distance from it).
-PoseTrajectoryResult SmoothPoseTrajectory(const std::vector<PoseMeasurement>& measurements,
-                                          double tolerance_mm, const Vec3& center,
-                                          double lever_mm);
+std::vector<Rigid3> SmoothPoseTrajectory(const std::vector<PoseMeasurement>& measurements,
+                                         double tolerance_mm, const Vec3& center,
+                                         double lever_mm);
 
 }  // namespace hmc

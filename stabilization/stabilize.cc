@@ -20,6 +20,7 @@
 namespace hmc {
 
 void StabilizeOptions::Register(OptionFields* fields) {
+  day.Register(fields);
   fields->Add("weighting", &weighting, "motion | tags | both (docs/stabilization.md)")
       .OneOf({"motion", "tags", "both"});
   fields->Add("noise_mm", &noise_mm, "sigma: bundle noise assumed by the motion weights (mm)")
@@ -292,17 +293,17 @@ void ApplyTemporalPrior(const MarkerModel& model, double tolerance_mm,
   const Vec3 center = model.neutral.colwise().mean().transpose();
   const double lever =
       std::sqrt((model.neutral.rowwise() - center.transpose()).rowwise().squaredNorm().mean());
-  const PoseTrajectoryResult smoothed =
+  const std::vector<Rigid3> smoothed =
       SmoothPoseTrajectory(measurements, tolerance_mm, center, lever);
   for (size_t f = 0; f < frames->size(); ++f) {
     StabilizedFrame& frame = (*frames)[f];
-    const Rigid3 move = smoothed.poses[f] * frame.head_from_helmet.inverse();
+    const Rigid3 move = smoothed[f] * frame.head_from_helmet.inverse();
     frame.prior_move_mm = 0;
     for (Eigen::Index k = 0; k < model.neutral.rows(); ++k) {
       const Vec3 q = model.neutral.row(k).transpose();
       frame.prior_move_mm = std::max(frame.prior_move_mm, (move * q - q).norm());
     }
-    frame.head_from_helmet = smoothed.poses[f];
+    frame.head_from_helmet = smoothed[f];
   }
 }
 

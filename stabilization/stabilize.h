@@ -47,6 +47,7 @@
 
 #include "core/actor.h"
 #include "core/frame_data.h"
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "stabilization/marker_model.h"
 
@@ -68,6 +69,7 @@ struct StabilizeOptions {
   bool temporal_prior = true;    // poses of frames the dataset explains less well informed by their neighbours (see stabilize.h)
   int smooth_frames = 0;         // centred moving-average window over poses (frames; 0 or 1 = off)
   int threads = 0;               // worker threads (0 = all cores)
+  DayMarkersOptions day;         // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields);
   bool Check() const;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <future>
 #include <limits>
+#include <memory>
 #include <set>
 #include <cmath>
 #include <vector>
@@ -14,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/allocator.h"
+#include "core/day_markers.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/frame_data.h"
@@ -31,45 +33,44 @@ void SynthShotOptions::Register(OptionFields* fields) {
   fields->Add("video", &video,
               "ffv1 (lossless .mkv per camera) | h264 (lossy .mp4 per camera, as a camera records) | "
               "png (a folder per camera) | none (ground truth "
-              "only: no images, dots_2d.csv or contact sheet)");
+              "only: no images, dots_2d.csv or contact sheet)")
+      .OneOf({"ffv1", "h264", "png", "none"});
   fields->Add("bundle_noise_mm", &bundle_noise_mm,
               "> 0: also write bundles_helmet_noisy.csv, Gaussian noise of this std per "
-              "coordinate (mm)");
-  fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)");
+              "coordinate (mm)")
+      .In(0, 50);
+  fields->Add("contact_frames", &contact_frames, "frames on the contact sheet (0 = none)")
+      .In(0, 32);
   fields->Add("contact_dots", &contact_dots, "overlay the ground-truth dots on the contact sheet");
-  fields->Add("contact_scale", &contact_scale, "contact sheet image scale");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+  fields->Add("contact_scale", &contact_scale, "contact sheet image scale").Above(0.05).AtMost(1);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").In(0, 4096);
   rig.Register(fields);
   render.Register(fields);
   vary.Register(fields);
+  paint.Register(fields);
   fields->Add("nominal_mm", &nominal_mm,
               "write calibration.yaml with each camera centre moved by this (mm; the truth goes "
-              "to calibration_true.yaml)");
-  fields->Add("nominal_deg", &nominal_deg, "... and each camera rotated by this (deg)");
-  fields->Add("nominal_focal_pct", &nominal_focal_pct, "... and its focal length scaled by 1 +- this (%)");
+              "to calibration_true.yaml)")
+      .In(0, 50);
+  fields->Add("nominal_deg", &nominal_deg, "... and each camera rotated by this (deg)").In(0, 20);
+  fields->Add("nominal_focal_pct", &nominal_focal_pct, "... and its focal length scaled by 1 +- this (%)")
+      .In(0, 20);
   fields->Add("knock_frame", &knock_frame,
               "from this frame on, knock_camera is moved (0 = no knock; the moved rig goes to "
-              "calibration_knocked.yaml)");
+              "calibration_knocked.yaml)")
+      .AtLeast(0);
   fields->Add("knock_camera", &knock_camera, "the camera knocked");
-  fields->Add("knock_mm", &knock_mm, "the knock's translation (mm)");
-  fields->Add("knock_deg", &knock_deg, "the knock's rotation (deg)");
+  fields->Add("knock_mm", &knock_mm, "the knock's translation (mm)").In(0, 50);
+  fields->Add("knock_deg", &knock_deg, "the knock's rotation (deg)").In(0, 20);
 }
 
 bool SynthShotOptions::Check() const {
-  if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check()) return false;
+  if (!performance.Check() || !rig.Check() || !render.Check() || !vary.Check() ||
+      !paint.Check()) {
+    return false;
+  }
   if (!VaryRender(render, vary, static_cast<uint64_t>(performance.seed)).Check()) return false;
-  CHECK_OPTION(video == "ffv1" || video == "h264" || video == "png" || video == "none");
-  CHECK_OPTION_IN(bundle_noise_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(contact_frames, 0, 32);
-  CHECK_OPTION_GT(contact_scale, 0.05);
-  CHECK_OPTION_LE(contact_scale, 1.0);
-  CHECK_OPTION_IN(threads, 0, 4096);
-  CHECK_OPTION_IN(nominal_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(nominal_deg, 0.0, 20.0);
-  CHECK_OPTION_IN(nominal_focal_pct, 0.0, 20.0);
-  CHECK_OPTION_GE(knock_frame, 0);
-  CHECK_OPTION_IN(knock_mm, 0.0, 50.0);
-  CHECK_OPTION_IN(knock_deg, 0.0, 20.0);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 
@@ -219,11 +220,19 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   // The set of this seed (options.render itself when vary.on is false).
   const FootageRenderOptions render_options =
       VaryRender(options.render, options.vary, static_cast<uint64_t>(perf.seed));
-  FootageRenderer renderer(model.neutral(), model.face().st, actor.markers, rig, render_options,
-                           static_cast<uint64_t>(perf.seed));
+  // The day's paint: where the dots really are (synth/paint.h).
+  const uint64_t paint_seed = static_cast<uint64_t>(
+      options.paint.seed >= 0 ? options.paint.seed : perf.seed);
+  const PaintedDots painted = PaintDots(actor.neutral, actor.markers, options.paint, paint_seed);
+  auto make_renderer = [&](int frame) {
+    return std::make_unique<FootageRenderer>(model.neutral(), model.face().st,
+                                             painted.At(frame), rig, render_options,
+                                             static_cast<uint64_t>(perf.seed));
+  };
+  std::unique_ptr<FootageRenderer> renderer_ptr = make_renderer(1);
   const ShotPerformance performance = MakePerformance(model, perf);
   const int num_frames = perf.frames;
-  const int num_cameras = renderer.NumCameras();
+  const int num_cameras = renderer_ptr->NumCameras();
   const bool render = options.video != "none";
   const bool perturbed =
       options.nominal_mm > 0 || options.nominal_deg > 0 || options.nominal_focal_pct > 0;
@@ -253,7 +262,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   // The tags' corners in the rig before any knock (calibration_true.yaml).
   std::string tags_csv = "camera,tag,corner,x,y\n";
   for (int c = 0; c < num_cameras; ++c) {
-    const auto corners = renderer.ProjectTagCorners(c);
+    const auto corners = renderer_ptr->ProjectTagCorners(c);
     for (size_t t = 0; t < corners.size(); ++t) {
       for (int i = 0; i < 4; ++i) {
         tags_csv += fmt::format("{},{},{},{:.6f},{:.6f}\n", rig.cameras[c].name, rig.tags[t].id,
@@ -298,8 +307,17 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   Progress progress("synth shot", num_frames);
   for (int f = 0; f < num_frames; ++f) {
     const int frame = truth.start_frame + f;
+    if (f > 0 && frame == painted.lost_frame) {
+      // Dots rubbed off from here on: the same scene without them.
+      renderer_ptr = make_renderer(frame);
+      if (knock_camera >= 0 && frame > options.knock_frame) {
+        renderer_ptr->SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
+      }
+    }
+    const FootageRenderer& renderer = *renderer_ptr;
+    const std::vector<Marker> markers = painted.At(frame);
     if (knock_camera >= 0 && frame == options.knock_frame) {
-      renderer.SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
+      renderer_ptr->SetCamFromHelmet(knock_camera, knocked.cameras[knock_camera].cam_from_helmet);
     }
     const Eigen::VectorXd& a = performance.activations[f];
     truth.frames.push_back(model.Evaluate(a));
@@ -326,7 +344,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
     bundles_head[f].frame = frame;
     bundles_helmet[f].frame = frame;
     const Rigid3 helmet_from_head = head_from_helmet.inverse();
-    for (const Marker& marker : actor.markers) {
+    for (const Marker& marker : markers) {
       const Vec3 p = EvaluateSurfacePoint(marker.point, F, X);
       bundles_head[f].bundles[marker.name] = p;
       bundles_helmet[f].bundles[marker.name] = helmet_from_head * p;
@@ -356,7 +374,7 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
         };
         dots_csv += fmt::format(
             "{},{},{},{:.6f},{:.6f},{},{},{},{:.3f},{:.3f},{},{}\n", frame, rig.cameras[c].name,
-            actor.markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
+            markers[m].name, dots[m].pixel.x(), dots[m].pixel.y(), dots[m].visible ? 1 : 0,
             DotDiscName(dots[m].disc), pair(dots[m].centroid), dots[m].seen, dots[m].view_cos,
             dots[m].whole ? 1 : 0, pair(dots[m].whole_centroid));
       }
@@ -397,6 +415,17 @@ SynthShotSummary RunSynthShot(const FaceModel& model, const Actor& actor,
   }
   WriteJawCsv(out_dir / "jaw.csv", jaw);
   WriteFileAtomic(out_dir / "tags_2d.csv", tags_csv);
+  std::string paint_note = fmt::format("# painted dots (hmc synth shot, paint seed {}, jitter {} mm)\n",
+                                       paint_seed, options.paint.jitter_mm);
+  if (!painted.missing.empty()) {
+    paint_note += fmt::format("# unpainted: {}\n", fmt::join(painted.missing, " "));
+  }
+  if (!painted.lost.empty()) {
+    paint_note += fmt::format("# lost from frame {}: {}\n", painted.lost_frame,
+                              fmt::join(painted.lost, " "));
+  }
+  WriteFileAtomic(out_dir / "painted_markers.csv",
+                  FormatMarkersCsv(painted.markers, nullptr, paint_note));
   truth.topology = actor.neutral;
   WriteMeshSequence(out_dir / "truth.pc2", truth);
   WriteObj(out_dir / "neutral.obj", actor.neutral);

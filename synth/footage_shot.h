@@ -12,6 +12,7 @@
 #include "synth/face_model.h"
 #include "synth/footage.h"
 #include "synth/helmet_rig.h"
+#include "synth/paint.h"
 #include "synth/performance.h"
 #include "synth/shot_variation.h"
 
@@ -28,6 +29,7 @@ struct SynthShotOptions {
   HelmetRigOptions rig;            // rig.*
   FootageRenderOptions render;     // render.*
   ShotVariationOptions vary;       // vary.*: the render options drawn per seed (off by default)
+  PaintOptions paint;              // paint_*: the day's paint (synth/paint.h)
   // Calibration tests (docs/calibration.md, "Synthetic harness"): with any
   // nominal_* > 0, calibration.yaml is a perturbed "nominal" rig and the true
   // one is written beside it as calibration_true.yaml.

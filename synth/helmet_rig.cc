@@ -11,53 +11,41 @@ namespace hmc {
 
 void HelmetRigOptions::Register(OptionFields* fields) {
   fields->SetGroup("rig");
-  fields->Add("width", &width, "image width (px)");
-  fields->Add("height", &height, "image height (px)");
+  fields->Add("width", &width, "image width (px)").In(64, 8192);
+  fields->Add("height", &height, "image height (px)").In(64, 8192);
   fields->Add("model", &model, "lens model: kannala_brandt | pinhole_radtan | double_sphere");
   fields->Add("focal_px", &focal_px,
-              "focal length (px per radian of a fisheye, px per unit tangent of a pinhole)");
-  fields->Add("k1", &k1, "Kannala-Brandt k1; pinhole_radtan radial k1");
-  fields->Add("k2", &k2, "Kannala-Brandt k2; pinhole_radtan radial k2");
-  fields->Add("k3", &k3, "Kannala-Brandt k3; pinhole_radtan radial k3");
-  fields->Add("k4", &k4, "Kannala-Brandt k4");
-  fields->Add("p1", &p1, "pinhole_radtan tangential p1");
-  fields->Add("p2", &p2, "pinhole_radtan tangential p2");
-  fields->Add("xi", &xi, "double_sphere xi");
-  fields->Add("alpha", &alpha, "double_sphere alpha");
+              "focal length (px per radian of a fisheye, px per unit tangent of a pinhole)")
+      .Above(10).Below(1e5);
+  // Kannala-Brandt coefficients of real lenses are well inside [-1, 1]
+  // (docs/calibration.md); beyond, the projection is no lens.
+  fields->Add("k1", &k1, "Kannala-Brandt k1; pinhole_radtan radial k1").In(-1, 1);
+  fields->Add("k2", &k2, "Kannala-Brandt k2; pinhole_radtan radial k2").In(-1, 1);
+  fields->Add("k3", &k3, "Kannala-Brandt k3; pinhole_radtan radial k3").In(-1, 1);
+  fields->Add("k4", &k4, "Kannala-Brandt k4").In(-1, 1);
+  fields->Add("p1", &p1, "pinhole_radtan tangential p1").In(-0.1, 0.1);
+  fields->Add("p2", &p2, "pinhole_radtan tangential p2").In(-0.1, 0.1);
+  fields->Add("xi", &xi, "double_sphere xi").In(-0.99, 10);
+  fields->Add("alpha", &alpha, "double_sphere alpha").In(0, 1);
   fields->Add("camera_distance", &camera_distance,
-              "camera centre to the face surface along the axis (mm)");
-  fields->Add("upper_camera_y", &upper_camera_y, "upper camera height (mm, helmet space)");
-  fields->Add("lower_camera_y", &lower_camera_y, "lower camera height (mm, helmet space)");
-  fields->Add("tag_size", &tag_size, "tag edge at the black border (mm)");
+              "camera centre to the face surface along the axis (mm)")
+      .In(50, 1000);
+  fields->Add("upper_camera_y", &upper_camera_y, "upper camera height (mm, helmet space)")
+      .In(-1000, 1000);
+  fields->Add("lower_camera_y", &lower_camera_y, "lower camera height (mm, helmet space)")
+      .In(-1000, 1000);
+  fields->Add("tag_size", &tag_size, "tag edge at the black border (mm)").Above(2).Below(200);
   fields->SetGroup("");
 }
 
 bool HelmetRigOptions::Check() const {
-  CHECK_OPTION_IN(width, 64, 8192);
-  CHECK_OPTION_IN(height, 64, 8192);
-  CHECK_OPTION_GT(focal_px, 10.0);
-  CHECK_OPTION_LT(focal_px, 1e5);
-  // Kannala-Brandt coefficients of real lenses are well inside [-1, 1]
-  // (docs/calibration.md); beyond, the projection is no lens.
-  CHECK_OPTION_IN(k1, -1.0, 1.0);
-  CHECK_OPTION_IN(k2, -1.0, 1.0);
-  CHECK_OPTION_IN(k3, -1.0, 1.0);
-  CHECK_OPTION_IN(k4, -1.0, 1.0);
+  CHECK_OPTION_LIMITS();
   CameraModel lens;
   CHECK_OPTION(ParseCameraModel(model, &lens));
-  CHECK_OPTION_IN(p1, -0.1, 0.1);
-  CHECK_OPTION_IN(p2, -0.1, 0.1);
-  CHECK_OPTION_IN(alpha, 0.0, 1.0);
-  CHECK_OPTION_IN(xi, -0.99, 10.0);
   // The lens must be one-to-one over the field a helmet camera sees (to 90
   // degrees off axis; a pinhole lens to 60).
   const double needed = lens == CameraModel::kPinholeRadTan ? M_PI / 3 : M_PI / 2;
   CHECK_OPTION(MakeCamera(*this).MaxTheta() >= needed);
-  CHECK_OPTION_IN(camera_distance, 50.0, 1000.0);
-  CHECK_OPTION_IN(upper_camera_y, -1000.0, 1000.0);
-  CHECK_OPTION_IN(lower_camera_y, -1000.0, 1000.0);
-  CHECK_OPTION_GT(tag_size, 2.0);
-  CHECK_OPTION_LT(tag_size, 200.0);
   return true;
 }
 

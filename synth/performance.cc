@@ -13,38 +13,35 @@
 namespace hmc {
 
 void PerformanceOptions::Register(OptionFields* fields) {
-  fields->Add("frames", &frames, "number of frames");
+  fields->Add("frames", &frames, "number of frames").In(1, 100000);
   fields->Add("seed", &seed, "random seed of expressions, slip and vibration");
-  fields->Add("fps", &fps, "frame rate (frames per second)");
-  fields->Add("slip_mm", &slip_mm, "largest slip of the head in the helmet (mm)");
-  fields->Add("slip_deg", &slip_deg, "largest slip rotation (deg)");
-  fields->Add("vibration_mm", &vibration_mm, "amplitude of the helmet vibration (mm)");
-  fields->Add("vibration_deg", &vibration_deg, "amplitude of the vibration's rotation (deg)");
-  fields->Add("vibration_hz", &vibration_hz, "main vibration frequency (Hz)");
+  fields->Add("fps", &fps, "frame rate (frames per second)").Above(0).AtMost(1000);
+  fields->Add("slip_mm", &slip_mm, "largest slip of the head in the helmet (mm)").In(0, 30);
+  fields->Add("slip_deg", &slip_deg, "largest slip rotation (deg)").In(0, 20);
+  fields->Add("vibration_mm", &vibration_mm, "amplitude of the helmet vibration (mm)").In(0, 5);
+  fields->Add("vibration_deg", &vibration_deg, "amplitude of the vibration's rotation (deg)")
+      .In(0, 2);
+  fields->Add("vibration_hz", &vibration_hz, "main vibration frequency (Hz)").Above(0).AtMost(500);
   fields->Add("head_offset_mm", &head_offset_mm,
-              "head placed this far from rest for the whole shot, random direction (mm)");
+              "head placed this far from rest for the whole shot, random direction (mm)")
+      .In(0, 40);
   fields->Add("head_offset_deg", &head_offset_deg,
-              "and turned this much about a random axis through the head origin (deg)");
+              "and turned this much about a random axis through the head origin (deg)")
+      .In(0, 30);
   fields->Add("brow_activity", &brow_activity,
-              "peak of added slow brow raises/lowerings (activation; 0 = none)");
+              "peak of added slow brow raises/lowerings (activation; 0 = none)")
+      .In(0, 1);
   fields->Add("jaw_activity", &jaw_activity,
-              "peak of added slow jaw opening, swing, thrust (activation; 0 = none)");
+              "peak of added slow jaw opening, swing, thrust (activation; 0 = none)")
+      .In(0, 1);
+  fields->Add("expression_scale", &expression_scale,
+              "the performance's activations scaled by this (0 = a neutral hold)")
+      .AtLeast(0)
+      .AtMost(1);
 }
 
 bool PerformanceOptions::Check() const {
-  CHECK_OPTION_IN(frames, 1, 100000);
-  CHECK_OPTION_GT(fps, 0.0);
-  CHECK_OPTION_LE(fps, 1000.0);
-  CHECK_OPTION_IN(slip_mm, 0.0, 30.0);
-  CHECK_OPTION_IN(slip_deg, 0.0, 20.0);
-  CHECK_OPTION_IN(vibration_mm, 0.0, 5.0);
-  CHECK_OPTION_IN(vibration_deg, 0.0, 2.0);
-  CHECK_OPTION_GT(vibration_hz, 0.0);
-  CHECK_OPTION_LE(vibration_hz, 500.0);
-  CHECK_OPTION_IN(head_offset_mm, 0.0, 40.0);
-  CHECK_OPTION_IN(head_offset_deg, 0.0, 30.0);
-  CHECK_OPTION_IN(brow_activity, 0.0, 1.0);
-  CHECK_OPTION_IN(jaw_activity, 0.0, 1.0);
+  CHECK_OPTION_LIMITS();
   return true;
 }
 
@@ -169,6 +166,7 @@ ShotPerformance MakePerformance(const FaceModel& model,
   all_units.holdout_units.clear();
   out.activations = TruthActivations(model, PlanDataset(model, all_units), truth);
   AddBrowAndJawActivity(model, options, &out.activations);
+  for (Eigen::VectorXd& a : out.activations) a *= options.expression_scale;
   for (int f = 0; f < options.frames; ++f) {
     out.head_from_helmet.push_back(HeadFromHelmetAt(options, f / options.fps));
   }

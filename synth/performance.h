@@ -31,6 +31,7 @@ struct PerformanceOptions {
   double head_offset_deg = 0;   // and turned this much about a random axis through the head origin (deg)
   double brow_activity = 0;     // peak of added slow brow raises/lowerings (activation; 0 = none)
   double jaw_activity = 0;      // peak of added slow jaw opening, swing, thrust (activation; 0 = none)
+  double expression_scale = 1;  // the performance's activations scaled by this (0 = a neutral hold)
 
   void Register(OptionFields* fields);
   bool Check() const;

@@ -15,24 +15,37 @@
 #include "synth/synth_random.h"
 
 namespace hmc {
+namespace {
+
+// At most this many units may be held out: enough for hard material, and
+// the dataset keeps most of the face's motion.
+constexpr int kMaxHoldout = 24;
+// A bound against typos, not a recommendation: 10,000 shapes of the default
+// 51,200-vertex mesh hold 12 GB of displacements.
+constexpr int kMaxShapes = 10000;
+
+}  // namespace
 
 void SynthActorOptions::Register(OptionFields* fields) {
   fields->Add("seed", &seed, "random seed: face proportions, marker jitter, detail phases");
   fields->Add("name", &name, "actor name written to actor.yaml");
-  fields->Add("grid_u", &grid_u, "vertex columns of the face grid (>= 24)");
-  fields->Add("grid_v", &grid_v, "vertex rows of the face grid (>= 20)");
+  fields->Add("grid_u", &grid_u, "vertex columns of the face grid").In(24, 4096);
+  fields->Add("grid_v", &grid_v, "vertex rows of the face grid").In(20, 4096);
   fields->Add("proportion_jitter", &proportion_jitter,
-              "relative spread of the seeded face proportions");
-  fields->Add("detail_scale", &detail_scale, "scale of wrinkle and fold amplitudes");
+              "relative spread of the seeded face proportions")
+      .In(0, 0.15);
+  fields->Add("detail_scale", &detail_scale, "scale of wrinkle and fold amplitudes").In(0, 5);
   fields->Add("marker_jitter_mm", &marker_jitter_mm,
-              "std of the seeded marker placement jitter (mm)");
+              "std of the seeded marker placement jitter (mm)")
+      .In(0, 3);
   fields->Add("dataset_inbetweens", &dataset_inbetweens,
               "add in-between shapes (50%, some 25/75%)");
   fields->Add("dataset_combos", &dataset_combos, "add the combination shapes");
   fields->Add("shapes", &shapes,
               "dataset size: 0 = the standard plan; more extends it with "
               "seeded in-betweens and pairwise and triple combinations of "
-              "units that share a region (at least the standard plan's size)");
+              "units that share a region (at least the standard plan's size)")
+      .In(0, kMaxShapes);
   fields->Add("rig", &rig,
               "generator: the nonlinear generator with its jaw rig; linear: "
               "each unit's extreme as a fixed displacement, summed (no "
@@ -40,10 +53,12 @@ void SynthActorOptions::Register(OptionFields* fields) {
               "each unit moving a broad, overlapping region as artists' FACS "
               "shapes do (the forehead to the hairline, the whole lower "
               "face, the temples and nose bridge), plus mouth_left/right; "
-              "shapes without region tags");
+              "shapes without region tags")
+      .OneOf({"generator", "linear", "broad"});
   fields->Add("holdout", &holdout,
               "action units held out of the dataset (drawn from the seed, "
-              "never a jaw unit)");
+              "never a jaw unit)")
+      .In(0, kMaxHoldout);
   fields->Add("holdout_units", &holdout_units,
               "comma-separated unit names held out (overrides the seeded "
               "draw; synth.yaml records the resolved list)");
@@ -72,40 +87,16 @@ std::vector<std::string> SplitNames(const std::string& text) {
   return names;
 }
 
-// At most this many units may be held out: enough for hard material, and
-// the dataset keeps most of the face's motion.
-constexpr int kMaxHoldout = 24;
-// A bound against typos, not a recommendation: 10,000 shapes of the default
-// 51,200-vertex mesh hold 12 GB of displacements.
-constexpr int kMaxShapes = 10000;
-
 }  // namespace
 
 bool SynthActorOptions::Check() const {
+  CHECK_OPTION_LIMITS();
   bool ok = true;
   auto fail = [&](const std::string& message) {
     spdlog::error("actor synth options: {}", message);
     ok = false;
   };
-  if (grid_u < 24 || grid_u > 4096) fail("grid_u must be in [24, 4096]");
-  if (grid_v < 20 || grid_v > 4096) fail("grid_v must be in [20, 4096]");
-  if (!(proportion_jitter >= 0 && proportion_jitter <= 0.15)) {
-    fail("proportion_jitter must be in [0, 0.15]");
-  }
-  if (!(detail_scale >= 0 && detail_scale <= 5)) fail("detail_scale must be in [0, 5]");
-  if (!(marker_jitter_mm >= 0 && marker_jitter_mm <= 3)) {
-    fail("marker_jitter_mm must be in [0, 3]");
-  }
   if (name.empty()) fail("name must not be empty");
-  if (shapes < 0 || shapes > kMaxShapes) {
-    fail(fmt::format("shapes must be in [0, {}]", kMaxShapes));
-  }
-  if (rig != "generator" && rig != "linear" && rig != "broad") {
-    fail("rig must be generator, linear or broad, not '" + rig + "'");
-  }
-  if (holdout < 0 || holdout > kMaxHoldout) {
-    fail(fmt::format("holdout must be in [0, {}]", kMaxHoldout));
-  }
   const std::vector<std::string> names = SplitNames(holdout_units);
   if (!names.empty()) {
     if (holdout != 0 && holdout != static_cast<int>(names.size())) {

@@ -14,17 +14,20 @@
 namespace hmc {
 
 void TruthFramesOptions::Register(OptionFields* fields) {
-  fields->Add("kind", &kind, "dataset | combos | performance | heldout | mixed");
-  fields->Add("frames", &frames, "number of frames (combos, performance)");
+  fields->Add("kind", &kind, "dataset | combos | performance | heldout | mixed")
+      .OneOf(TruthFrameKinds());
+  fields->Add("frames", &frames, "number of frames (combos, performance)").In(1, 100000);
   fields->Add("seed", &seed, "random seed of the activations and the bundle noise");
-  fields->Add("noise_mm", &noise_mm, "std of Gaussian noise per bundle coordinate (mm)");
-  fields->Add("fps", &fps, "frame rate (frames per second)");
-  fields->Add("min_units", &min_units, "combos: fewest units active per frame");
+  fields->Add("noise_mm", &noise_mm, "std of Gaussian noise per bundle coordinate (mm)").In(0, 50);
+  fields->Add("fps", &fps, "frame rate (frames per second)").Above(0).AtMost(1000);
+  fields->Add("min_units", &min_units, "combos: fewest units active per frame").AtLeast(1);
   fields->Add("max_units", &max_units, "combos: most units active per frame");
   fields->Add("min_activation", &min_activation,
-              "combos, heldout, mixed: activations drawn in [min, 1]");
+              "combos, heldout, mixed: activations drawn in [min, 1]")
+      .Above(0).AtMost(1);
   fields->Add("held_min_units", &held_min_units,
-              "heldout, mixed: fewest held-out units per frame");
+              "heldout, mixed: fewest held-out units per frame")
+      .AtLeast(1);
   fields->Add("held_max_units", &held_max_units,
               "heldout, mixed: most held-out units per frame");
 }
@@ -40,28 +43,15 @@ bool KindNeedsHeldOutUnits(const std::string& kind) {
 }
 
 bool TruthFramesOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const std::string& message) {
-    spdlog::error("actor frames options: {}", message);
-    ok = false;
-  };
-  const auto& kinds = TruthFrameKinds();
-  if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end()) {
-    fail("kind must be dataset, combos, performance, heldout or mixed, got '" +
-         kind + "'");
-  }
-  if (frames < 1 || frames > 100000) fail("frames must be in [1, 100000]");
-  if (!(noise_mm >= 0 && noise_mm <= 50)) fail("noise_mm must be in [0, 50]");
-  if (!(fps > 0 && fps <= 1000)) fail("fps must be in (0, 1000]");
-  if (min_units < 1 || max_units < min_units) fail("need 1 <= min_units <= max_units");
-  if (!(min_activation > 0 && min_activation <= 1)) fail("min_activation must be in (0, 1]");
-  if (held_min_units < 1 || held_max_units < held_min_units) {
-    fail("need 1 <= held_min_units <= held_max_units");
-  }
+  CHECK_OPTION_LIMITS();
+  CHECK_OPTION_LE(min_units, max_units);
+  CHECK_OPTION_LE(held_min_units, held_max_units);
   if (kind == "mixed" && max_units < 2) {
-    fail("kind mixed needs max_units >= 2 (a held-out and a dataset unit)");
+    spdlog::error("actor frames options: kind mixed needs max_units >= 2 (a held-out and a "
+                  "dataset unit)");
+    return false;
   }
-  return ok;
+  return true;
 }
 
 namespace {

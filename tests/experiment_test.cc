@@ -186,7 +186,7 @@ TEST(ExperimentCli, BadOptionsFailWithAClearMessage) {
                          (dir / "actor").string(), (dir / "exp").string()),
              dir);
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.err.find("unknown method 'rbf'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("item 'rbf' must be one of"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("lgi-rbf"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "exp" / "results.json"));
   r = RunHmc(fmt::format("solve --method spline --actor '{}' --bundles '{}' "

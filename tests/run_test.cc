@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -127,6 +128,20 @@ TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
   // The export plays at the footage's frame rate.
   EXPECT_NE(ReadFile(work / "solve" / "mesh.usda").find(fmt::format("framesPerSecond = {}\n", kFps)),
             std::string::npos);
+  // The actor's units fitted to the solved meshes, and the constraint of
+  // the markers seen by one camera (docs/method.md): in the solve's
+  // summary.
+  EXPECT_TRUE(fs::is_regular_file(work / "solve" / "unit_rig.usda"));
+  EXPECT_TRUE(fs::is_regular_file(work / "solve" / "curves.csv"));
+  const std::string weights = ReadFile(work / "solve" / "weights.csv");
+  EXPECT_EQ(std::count(weights.begin(), weights.end(), '\n'), kFrames + 1);
+  const nlohmann::json solve_report =
+      nlohmann::json::parse(ReadFile(work / "solve" / "summary.json"))["report"];
+  ASSERT_TRUE(solve_report["unit_fit"].is_object()) << solve_report.dump();
+  EXPECT_GT(solve_report["unit_fit"]["units"].get<int>(), 0);
+  ASSERT_TRUE(solve_report["rays"].is_object()) << solve_report.dump();
+  EXPECT_LE(solve_report["rays"]["mean_after_mm"].get<double>(),
+            solve_report["rays"]["mean_before_mm"].get<double>());
   EXPECT_TRUE(fs::is_regular_file(work / "report" / "report.html"));
   // Against the ground truth (the report's accuracy.json). Bounds: several
   // times what the default shot measures (docs/pipeline.md), so they catch
@@ -190,9 +205,12 @@ TEST_F(RunTest, EachStageAloneGivesTheSameBytes) {
                    (work / "stabilize" / "bundles.csv").string(), actor,
                    (alone / "jaw.csv").string()),
        {{work / "jaw" / "jaw.csv", alone / "jaw.csv"}}},
-      {fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}'", actor,
-                   (work / "stabilize" / "bundles.csv").string(),
-                   (work / "jaw" / "jaw.csv").string(), (alone / "mesh.pc2").string()),
+      {fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' --rays '{}' "
+                   "--head_from_helmet '{}' --calibration '{}'",
+                   actor, (work / "stabilize" / "bundles.csv").string(),
+                   (work / "jaw" / "jaw.csv").string(), (alone / "mesh.pc2").string(),
+                   (work / "triangulate" / "rays.csv").string(),
+                   (work / "stabilize" / "head_from_helmet.csv").string(), cal),
        {{work / "solve" / "mesh.pc2", alone / "mesh.pc2"}}},
   };
   for (const auto& [args, files] : stages) {

@@ -9,40 +9,35 @@
 namespace hmc {
 
 void DotDetectorOptions::Register(OptionFields *fields) {
-  fields->Add("polarity", &polarity, "dark (paint darker than the skin) | bright");
+  fields->Add("polarity", &polarity, "dark (paint darker than the skin) | bright")
+      .OneOf({"dark", "bright"});
   fields->Add("dot_size_px", &dot_size_px,
-              "expected dot diameter (px; 0 = measured at the reference frame)");
+              "expected dot diameter (px; 0 = measured at the reference frame)")
+      .In(0, 40);
   fields->Add("min_contrast", &min_contrast,
-              "relative darkening (or brightening) of a dot pixel vs the local mean");
+              "relative darkening (or brightening) of a dot pixel vs the local mean")
+      .Above(0).Below(1);
   fields->Add("min_step", &min_step,
-              "smallest absolute darkening of a dot pixel (fraction of full scale)");
-  fields->Add("min_size", &min_size, "smallest equivalent diameter (fraction of the expected)");
-  fields->Add("max_size", &max_size, "largest equivalent diameter (fraction of the expected)");
+              "smallest absolute darkening of a dot pixel (fraction of full scale)")
+      .AtLeast(0).Below(1);
+  fields->Add("min_size", &min_size, "smallest equivalent diameter (fraction of the expected)")
+      .Above(0).Below(1);
+  fields->Add("max_size", &max_size, "largest equivalent diameter (fraction of the expected)")
+      .Above(1);
   fields->Add("max_elongation", &max_elongation,
-              "largest ratio of the blob's axes (a disc seen at 82 deg, cos 0.14)");
-  fields->Add("min_fill", &min_fill, "smallest fraction of the blob's moment ellipse covered");
-  fields->Add("background_scale", &background_scale, "box of the local mean (dot diameters)");
-  fields->Add("border_px", &border_px, "clearance from the image border (px)");
+              "largest ratio of the blob's axes (a disc seen at 82 deg, cos 0.14)")
+      .AtLeast(1);
+  fields->Add("min_fill", &min_fill, "smallest fraction of the blob's moment ellipse covered")
+      .AtLeast(0).Below(1);
+  fields->Add("background_scale", &background_scale, "box of the local mean (dot diameters)")
+      .AtLeast(2);
+  fields->Add("border_px", &border_px, "clearance from the image border (px)").AtLeast(0);
 }
 
 bool DotDetectorOptions::Check() const {
-  bool ok = true;
-  auto fail = [&](const char *what) {
-    spdlog::error("detect options: {}", what);
-    ok = false;
-  };
-  if (polarity != "dark" && polarity != "bright") fail("polarity must be dark or bright");
-  if (!(dot_size_px == 0 || (dot_size_px >= 1.5 && dot_size_px <= 40))) {
-    fail("dot_size_px must be 0 or in [1.5, 40]");
-  }
-  if (!(min_contrast > 0 && min_contrast < 1)) fail("min_contrast must be in (0, 1)");
-  if (!(min_step >= 0 && min_step < 1)) fail("min_step must be in [0, 1)");
-  if (!(min_size > 0 && min_size < 1 && max_size > 1)) fail("need 0 < min_size < 1 < max_size");
-  if (!(max_elongation >= 1)) fail("max_elongation must be >= 1");
-  if (!(min_fill >= 0 && min_fill < 1)) fail("min_fill must be in [0, 1)");
-  if (!(background_scale >= 2)) fail("background_scale must be >= 2");
-  if (border_px < 0) fail("border_px must be >= 0");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  CHECK_OPTION(dot_size_px == 0 || dot_size_px >= 1.5);
+  return true;
 }
 
 namespace {

@@ -18,57 +18,48 @@ namespace hmc {
 
 void MarkerTrackerOptions::Register(OptionFields* fields) {
   fields->Add("pair_gap_mm", &pair_gap_mm,
-              "stereo pairing: largest ray closest-approach distance (mm)");
-  fields->Add("max_offset_mm", &max_offset_mm, "head offset from rest the labelling must cover (mm)");
+              "stereo pairing: largest ray closest-approach distance (mm)")
+      .Above(0);
+  fields->Add("max_offset_mm", &max_offset_mm, "head offset from rest the labelling must cover (mm)")
+      .AtLeast(0);
   fields->Add("max_offset_deg", &max_offset_deg,
-              "head rotation from rest the labelling must cover (deg)");
+              "head rotation from rest the labelling must cover (deg)")
+      .AtLeast(0).Below(60);
   fields->Add("triple_tolerance_mm", &triple_tolerance_mm,
-              "RANSAC: pairwise distance agreement of a triple (mm)");
-  fields->Add("inlier_mm", &inlier_mm, "registration inlier distance (mm)");
-  fields->Add("ransac_samples", &ransac_samples, "RANSAC triples of points tried");
+              "RANSAC: pairwise distance agreement of a triple (mm)")
+      .Above(0);
+  fields->Add("inlier_mm", &inlier_mm, "registration inlier distance (mm)").Above(0);
+  fields->Add("ransac_samples", &ransac_samples, "RANSAC triples of points tried").AtLeast(1);
   fields->Add("name_gate", &name_gate,
-              "naming gate (fraction of the distance to the nearest other dot)");
+              "naming gate (fraction of the distance to the nearest other dot)")
+      .Above(0).Below(0.5);
   fields->Add("track_gate", &track_gate,
-              "tracking gate (fraction of the distance to the nearest other dot)");
+              "tracking gate (fraction of the distance to the nearest other dot)")
+      .Above(0).Below(0.5);
   fields->Add("reacquire_gate", &reacquire_gate,
-              "re-acquisition gate (fraction of the nearest-dot distance)");
-  fields->Add("max_gate_px", &max_gate_px, "cap of every gate (px)");
+              "re-acquisition gate (fraction of the nearest-dot distance)")
+      .Above(0).Below(0.5);
+  fields->Add("max_gate_px", &max_gate_px, "cap of every gate (px)").Above(0);
   fields->Add("ambiguity_ratio", &ambiguity_ratio,
-              "second-nearest detection at least this much farther");
+              "second-nearest detection at least this much farther")
+      .AtLeast(1);
   fields->Add("epipolar_gap_mm", &epipolar_gap_mm,
-              "stereo swap check: largest ray gap of a named pair (mm)");
-  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection");
-  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)");
+              "stereo swap check: largest ray gap of a named pair (mm)")
+      .Above(0);
+  fields->Add("neighbours", &neighbours, "layout neighbours whose residuals correct a projection")
+      .AtLeast(1);
+  fields->Add("flow_window", &flow_window, "Lucas-Kanade window (dot diameters)").In(1, 10);
   fields->Add("jaw_reach_deg", &jaw_reach_deg,
-              "largest change of the jaw opening between two frames that is followed (deg)");
+              "largest change of the jaw opening between two frames that is followed (deg)")
+      .In(1, 45);
   fields->Add("flow_check_px", &flow_check_px,
-              "largest forward-backward flow disagreement (px)");
+              "largest forward-backward flow disagreement (px)")
+      .Above(0);
 }
 
 bool MarkerTrackerOptions::Check() const {
-  bool ok = true;
-  auto need = [&](bool condition, const char* what) {
-    if (!condition) {
-      spdlog::error("track options: {}", what);
-      ok = false;
-    }
-  };
-  need(pair_gap_mm > 0, "pair_gap_mm must be > 0");
-  need(max_offset_mm >= 0 && max_offset_deg >= 0 && max_offset_deg < 60,
-       "max_offset_mm >= 0 and max_offset_deg in [0, 60) required");
-  need(triple_tolerance_mm > 0 && inlier_mm > 0, "triple_tolerance_mm and inlier_mm must be > 0");
-  need(ransac_samples >= 1, "ransac_samples must be >= 1");
-  need(name_gate > 0 && name_gate < 0.5, "name_gate must be in (0, 0.5)");
-  need(track_gate > 0 && track_gate < 0.5, "track_gate must be in (0, 0.5)");
-  need(reacquire_gate > 0 && reacquire_gate < 0.5, "reacquire_gate must be in (0, 0.5)");
-  need(max_gate_px > 0, "max_gate_px must be > 0");
-  need(ambiguity_ratio >= 1, "ambiguity_ratio must be >= 1");
-  need(epipolar_gap_mm > 0, "epipolar_gap_mm must be > 0");
-  need(neighbours >= 1, "neighbours must be >= 1");
-  need(flow_window >= 1 && flow_window <= 10, "flow_window must be in [1, 10]");
-  need(flow_check_px > 0, "flow_check_px must be > 0");
-  need(jaw_reach_deg >= 1 && jaw_reach_deg <= 45, "jaw_reach_deg must be in [1, 45]");
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 namespace {
@@ -367,11 +358,13 @@ void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>&
 
 std::vector<CameraFrameTracks> MarkerTracker::Start(
     const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images,
-    const std::vector<double>& dot_size_px) {
+    const std::vector<double>& dot_size_px, const std::vector<std::vector<TrackerFix>>* fixes,
+    std::vector<FixOutcome>* outcome) {
   const int num_cameras = static_cast<int>(rig_.cameras.size());
   const int num_markers = static_cast<int>(layout_.names.size());
   std::vector<CameraFrameTracks> out(num_cameras);
   state_.assign(num_cameras, std::vector<DotState>(num_markers));
+  absent_.assign(num_cameras, std::vector<char>(num_markers, 0));
   dot_size_px_ = dot_size_px;
   pyramid_.assign(num_cameras, {});
   for (int c = 0; c < num_cameras; ++c) {
@@ -387,6 +380,16 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
                    &detection_of[c], &out[c].vacant);
   }
   StereoCheck(detections, &detection_of, &out);
+  std::vector<std::vector<DotDetection>> fixed;  // the detections with the fixes' added points
+  const std::vector<std::vector<DotDetection>>& dots = fixes ? fixed : detections;
+  if (fixes) {
+    fixed = detections;
+    if (outcome) outcome->assign(num_cameras, {});
+    for (int c = 0; c < num_cameras; ++c) {
+      const FixOutcome o = ApplyFixes(c, (*fixes)[c], &fixed[c], &detection_of[c]);
+      if (outcome) (*outcome)[c] = o;
+    }
+  }
   for (int c = 0; c < num_cameras; ++c) {
     out[c].detections = static_cast<int>(detections[c].size());
     for (int k = 0; k < num_markers; ++k) {
@@ -395,11 +398,11 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
       DotState& s = state_[c][k];
       s.status = Status::kTracked;
       s.has_position = true;
-      s.position = detections[c][d].pixel;
+      s.position = dots[c][d].pixel;
       s.velocity.setZero();
       out[c].marker.push_back(k);
-      out[c].pixel.push_back(detections[c][d].pixel);
-      out[c].score.push_back(detections[c][d].score);
+      out[c].pixel.push_back(dots[c][d].pixel);
+      out[c].score.push_back(dots[c][d].score);
     }
     out[c].unnamed = out[c].detections - static_cast<int>(out[c].marker.size());
   }
@@ -407,7 +410,8 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
 }
 
 std::vector<CameraFrameTracks> MarkerTracker::Step(
-    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images) {
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<cv::Mat>& images,
+    const std::vector<std::vector<TrackerFix>>* fixes, std::vector<FixOutcome>* outcome) {
   const int num_cameras = static_cast<int>(rig_.cameras.size());
   const int num_markers = static_cast<int>(layout_.names.size());
   std::vector<CameraFrameTracks> out(num_cameras);
@@ -481,14 +485,28 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     }
   }
   StereoCheck(detections, &detection_of, &out);
+  std::vector<std::vector<DotDetection>> fixed;  // the detections with the fixes' added points
+  const std::vector<std::vector<DotDetection>>& dots = fixes ? fixed : detections;
+  if (fixes) {
+    fixed = detections;
+    if (outcome) outcome->assign(num_cameras, {});
+  }
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) continue;
+    if (fixes) {
+      const FixOutcome o = ApplyFixes(c, (*fixes)[c], &fixed[c], &detection_of[c]);
+      if (outcome) (*outcome)[c] = o;
+    } else {
+      for (int k = 0; k < num_markers; ++k) {
+        if (absent_[c][k]) detection_of[c][k] = -1;
+      }
+    }
     out[c].detections = static_cast<int>(detections[c].size());
     for (int k = 0; k < num_markers; ++k) {
       DotState& s = state_[c][k];
       const int d = detection_of[c][k];
       if (d >= 0) {
-        const Vec2 p = detections[c][d].pixel;
+        const Vec2 p = dots[c][d].pixel;
         if (s.status == Status::kTracked) {
           s.velocity = p - s.position;
         } else {
@@ -500,7 +518,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
         s.position = p;
         out[c].marker.push_back(k);
         out[c].pixel.push_back(p);
-        out[c].score.push_back(detections[c][d].score);
+        out[c].score.push_back(dots[c][d].score);
       } else if (s.status == Status::kTracked) {
         s.status = Status::kLost;
         s.velocity.setZero();
@@ -510,6 +528,75 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     out[c].unnamed = out[c].detections - static_cast<int>(out[c].marker.size());
   }
   return out;
+}
+
+int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
+                            const std::vector<int>& detection_of) const {
+  if (fix.has_pixel) {
+    const double gate = std::max(3.0, dot_size_px_[c]);
+    int best = -1;
+    double best_d = gate;
+    for (size_t d = 0; d < detections.size(); ++d) {
+      const double dist = (detections[d].pixel - fix.pixel).norm();
+      if (dist <= best_d) {
+        best_d = dist;
+        best = static_cast<int>(d);
+      }
+    }
+    if (best >= 0 || fix.action == TrackFixAction::kMove) return best;
+  }
+  return fix.marker >= 0 ? detection_of[fix.marker] : -1;
+}
+
+FixOutcome MarkerTracker::ApplyFixes(int c, const std::vector<TrackerFix>& fixes,
+                                     std::vector<DotDetection>* detections, std::vector<int>* detection_of) {
+  FixOutcome outcome;
+  auto give = [&](int marker, int d) {
+    for (int& held : *detection_of) {
+      if (held == d) held = -1;  // whoever held the dot loses it
+    }
+    (*detection_of)[marker] = d;
+    absent_[c][marker] = 0;
+  };
+  for (size_t i = 0; i < fixes.size(); ++i) {
+    const TrackerFix& fix = fixes[i];
+    int d = fix.action == TrackFixAction::kAbsent ? -1 : FixedDot(c, fix, *detections, *detection_of);
+    switch (fix.action) {
+      case TrackFixAction::kRename:
+        if (d >= 0) give(fix.to, d);
+        break;
+      case TrackFixAction::kUnname:
+        if (d >= 0) {
+          for (int& held : *detection_of) {
+            if (held == d) held = -1;
+          }
+        }
+        break;
+      case TrackFixAction::kAbsent:
+        absent_[c][fix.marker] = 1;
+        d = 0;  // always applies
+        break;
+      case TrackFixAction::kMove:
+        if (d < 0) {
+          DotDetection added;
+          added.pixel = fix.pixel;
+          added.score = 1;
+          detections->push_back(added);
+          d = static_cast<int>(detections->size()) - 1;
+        }
+        give(fix.marker, d);
+        break;
+    }
+    if (d >= 0) {
+      ++outcome.applied;
+    } else {
+      outcome.unmatched.push_back(static_cast<int>(i));
+    }
+  }
+  for (size_t k = 0; k < detection_of->size(); ++k) {
+    if (absent_[c][k]) (*detection_of)[k] = -1;
+  }
+  return outcome;
 }
 
 }  // namespace hmc

@@ -70,6 +70,7 @@
 #include "core/calibration.h"
 #include "core/options.h"
 #include "tracking/dot_detector.h"
+#include "tracking/track_fixes.h"
 
 namespace hmc {
 
@@ -138,6 +139,22 @@ struct CameraFrameTracks {
   std::vector<int> vacant;
 };
 
+// One fix of track_fixes.csv (tracking/track_fixes.h) resolved for the
+// tracker: markers as layout indices (-1: none given).
+struct TrackerFix {
+  TrackFixAction action = TrackFixAction::kRename;
+  int marker = -1;
+  int to = -1;  // rename
+  bool has_pixel = false;
+  Vec2 pixel = Vec2::Zero();
+};
+
+// What applying one frame's fixes did, per camera.
+struct FixOutcome {
+  int applied = 0;
+  std::vector<int> unmatched;  // indices into the frame's fixes of the camera: no dot found
+};
+
 struct ReferenceLabelling {
   bool ok = false;
   std::string reason;          // why not, when !ok
@@ -161,12 +178,19 @@ class MarkerTracker {
   // labelling() tells how the registration went.
   // images: per camera the frame (CV_8U or CV_16U grey) the detections
   // come from; dot_size_px: per camera, sets the flow window.
+  // fixes: per camera the frame's track fixes (null: none), applied as
+  // hard constraints after the naming (ApplyFixes); the tracking goes on
+  // from the fixed names. outcome: per camera what they did.
   std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections,
                                        const std::vector<cv::Mat>& images,
-                                       const std::vector<double>& dot_size_px);
+                                       const std::vector<double>& dot_size_px,
+                                       const std::vector<std::vector<TrackerFix>>* fixes = nullptr,
+                                       std::vector<FixOutcome>* outcome = nullptr);
   // The next frame; a camera whose image is missing has an empty image.
   std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& detections,
-                                      const std::vector<cv::Mat>& images);
+                                      const std::vector<cv::Mat>& images,
+                                      const std::vector<std::vector<TrackerFix>>* fixes = nullptr,
+                                      std::vector<FixOutcome>* outcome = nullptr);
 
   const ReferenceLabelling& labelling() const { return labelling_; }
 
@@ -199,12 +223,26 @@ class MarkerTracker {
   void StereoCheck(const std::vector<std::vector<DotDetection>>& detections,
                    std::vector<std::vector<int>>* detection_of,
                    std::vector<CameraFrameTracks>* out) const;
+  // The frame's fixes of camera c, after every other naming step so
+  // that nothing undoes them: rename and move give the marker the dot
+  // (taking it from whoever held it: that marker is lost and re-acquired
+  // later), unname takes the name off, absent keeps the marker unnamed in
+  // this camera until a later rename or move names it. A move to where no
+  // dot was detected adds the point as a detection (score 1). Then every
+  // absent marker is unnamed.
+  FixOutcome ApplyFixes(int c, const std::vector<TrackerFix>& fixes,
+                        std::vector<DotDetection>* detections, std::vector<int>* detection_of);
+  // The detection a fix points at: the nearest to its pixel within the
+  // dot's size (at least 3 px), else the one its marker holds; -1: none.
+  int FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
+               const std::vector<int>& detection_of) const;
 
   HelmetRig rig_;
   MarkerLayout layout_;
   MarkerTrackerOptions options_;
   ReferenceLabelling labelling_;
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
+  std::vector<std::vector<char>> absent_;     // [camera][marker]: set by an `absent` fix
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
   std::vector<double> dot_size_px_;
   Rigid3 helmet_from_head_ = Rigid3::Identity();

@@ -26,36 +26,23 @@ namespace hmc {
 void TagDetectorOptions::Register(OptionFields* fields) {
   fields->SetGroup("tags");
   fields->Add("quad_decimate", &quad_decimate,
-              "image decimation before the quad search (1 = full resolution)");
-  fields->Add("quad_sigma", &quad_sigma, "Gaussian blur before the quad search (px; 0 = none)");
-  fields->Add("min_margin", &min_margin, "smallest decision margin of a kept detection");
-  fields->Add("max_hamming", &max_hamming, "most corrected bits of a kept detection");
+              "image decimation before the quad search (1 = full resolution)")
+      .In(1, 8);
+  fields->Add("quad_sigma", &quad_sigma, "Gaussian blur before the quad search (px; 0 = none)")
+      .In(0, 10);
+  fields->Add("min_margin", &min_margin, "smallest decision margin of a kept detection").AtLeast(0);
+  fields->Add("max_hamming", &max_hamming, "most corrected bits of a kept detection").In(0, 3);
   fields->Add("rectify", &rectify,
               "re-detect each tag in a virtual pinhole view of it, where its edges are straight");
   fields->Add("coarse_decimate", &coarse_decimate,
-              "with rectify: decimation of the full-image search (1 = full resolution)");
+              "with rectify: decimation of the full-image search (1 = full resolution)")
+      .In(1, 8);
   fields->SetGroup("");
 }
 
 bool TagDetectorOptions::Check() const {
-  bool ok = true;
-  if (!(quad_decimate >= 1 && quad_decimate <= 8)) {
-    spdlog::error("tag options: quad_decimate must be in [1, 8]");
-    ok = false;
-  }
-  if (!(quad_sigma >= 0 && quad_sigma <= 10)) {
-    spdlog::error("tag options: quad_sigma must be in [0, 10]");
-    ok = false;
-  }
-  if (!(coarse_decimate >= 1 && coarse_decimate <= 8)) {
-    spdlog::error("tag options: coarse_decimate must be in [1, 8]");
-    ok = false;
-  }
-  if (!(min_margin >= 0) || max_hamming < 0 || max_hamming > 3) {
-    spdlog::error("tag options: min_margin must be >= 0 and max_hamming in [0, 3]");
-    ok = false;
-  }
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return true;
 }
 
 struct TagDetector::Impl {

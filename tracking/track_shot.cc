@@ -6,10 +6,12 @@
 #include <future>
 #include <limits>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -21,6 +23,7 @@
 #include "core/logging.h"
 #include "core/parallel.h"
 #include "tracking/overlay.h"
+#include "tracking/track_fixes.h"
 
 namespace hmc {
 
@@ -28,8 +31,10 @@ void TrackOptions::Register(OptionFields* fields) {
   footage.Register(fields);
   footage.RegisterTransfer(fields);
   fields->Add("reference_frame", &reference_frame,
-              "frame where the actor is near neutral and names are given");
-  fields->Add("threads", &threads, "worker threads (0 = all cores)");
+              "frame where the actor is near neutral and names are given")
+      .AtLeast(1);
+  fields->Add("threads", &threads, "worker threads (0 = all cores)").AtLeast(0);
+  day.Register(fields);
   fields->SetGroup("detect");
   detect.Register(fields);
   fields->SetGroup("track");
@@ -38,16 +43,8 @@ void TrackOptions::Register(OptionFields* fields) {
 }
 
 bool TrackOptions::Check() const {
-  bool ok = footage.Check() && detect.Check() && tracker.Check();
-  if (reference_frame < 1) {
-    spdlog::error("track options: reference_frame must be >= 1");
-    ok = false;
-  }
-  if (threads < 0) {
-    spdlog::error("track options: threads must be >= 0");
-    ok = false;
-  }
-  return ok;
+  CHECK_OPTION_LIMITS();
+  return footage.Check() && detect.Check() && tracker.Check();
 }
 
 std::string TrackSummary::BriefReport() const {
@@ -99,6 +96,60 @@ cv::Mat DrawNamed(const cv::Mat& grey, const CameraFrameTracks& tracks,
   return bgr;
 }
 
+// A proxy's crop: the box of the reference frame's named dots with a margin
+// of 35 % of its size (the head moves in the helmet, the jaw opens) and 10
+// px, inside the image.
+cv::Rect ProxyCrop(const CameraFrameTracks& tracks, cv::Size size) {
+  const cv::Rect whole(0, 0, size.width, size.height);
+  if (tracks.pixel.empty()) return whole;
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (const Vec2& p : tracks.pixel) {
+    x0 = std::min(x0, p.x());
+    y0 = std::min(y0, p.y());
+    x1 = std::max(x1, p.x());
+    y1 = std::max(y1, p.y());
+  }
+  const double margin = 0.35 * std::max(x1 - x0, y1 - y0) + 10;
+  const cv::Rect box(cv::Point(static_cast<int>(x0 - margin), static_cast<int>(y0 - margin)),
+                     cv::Point(static_cast<int>(x1 + margin), static_cast<int>(y1 + margin)));
+  const cv::Rect clipped = box & whole;
+  return clipped.area() > 0 ? clipped : whole;
+}
+
+// The proxy JPEG of one view: the frame as the tracker saw it (linear
+// light, exposure matched), encoded back to sRGB for a camera read as sRGB
+// so that it looks as stored.
+std::string ProxyJpeg(const cv::Mat& image, bool srgb, cv::Rect crop, int height, int quality) {
+  cv::Mat grey;
+  if (srgb) {
+    static const std::vector<uint8_t> lut = [] {
+      std::vector<uint8_t> t(65536);
+      for (int i = 0; i < 65536; ++i) {
+        const double v = i / 65535.0;
+        const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+        t[i] = static_cast<uint8_t>(std::lround(255 * std::clamp(e, 0.0, 1.0)));
+      }
+      return t;
+    }();
+    cv::Mat wide;
+    image(crop).convertTo(wide, CV_16U, image.depth() == CV_16U ? 1.0 : 257.0);
+    grey.create(wide.size(), CV_8U);
+    for (int y = 0; y < wide.rows; ++y) {
+      const uint16_t* in = wide.ptr<uint16_t>(y);
+      uint8_t* out = grey.ptr<uint8_t>(y);
+      for (int x = 0; x < wide.cols; ++x) out[x] = lut[in[x]];
+    }
+  } else {
+    grey = ToGrey8(image(crop));
+  }
+  const double s = static_cast<double>(height) / grey.rows;
+  cv::Mat small;
+  cv::resize(grey, small, cv::Size(), s, s, s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", small, jpeg, {cv::IMWRITE_JPEG_QUALITY, quality});
+  return std::string(jpeg.begin(), jpeg.end());
+}
+
 nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) {
   nlohmann::json j;
   j["detections"] = t.detections;
@@ -123,7 +174,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     ThrowInputError(input.calibration, 0, "hmc track needs two cameras, the file has {}",
                     rig.cameras.size());
   }
-  const Actor actor = LoadActor(input.actor);
+  const Actor actor = *LoadActorForDay(input.actor, options.day.markers);
   if (actor.markers.size() < 3) {
     ThrowInputError(input.actor, 0, "the actor has {} markers; tracking needs at least 3",
                     actor.markers.size());
@@ -134,6 +185,30 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   for (const HelmetCamera& hc : rig.cameras) {
     names.push_back(hc.name);
     sizes.emplace_back(hc.camera.width, hc.camera.height);
+  }
+  // The fixes, per frame and camera, resolved to the layout's markers.
+  std::vector<TrackFix> fixes;
+  std::map<int, std::vector<std::vector<TrackerFix>>> fixes_at;
+  std::map<int, std::vector<std::vector<int>>> fix_lines;  // the same, their lines in the file
+  if (!input.fixes.empty()) {
+    fixes = ReadTrackFixesCsv(input.fixes, names, layout.names);
+    std::map<std::string, int> marker_of, camera_of;
+    for (size_t k = 0; k < layout.names.size(); ++k) marker_of[layout.names[k]] = static_cast<int>(k);
+    for (size_t c = 0; c < names.size(); ++c) camera_of[names[c]] = static_cast<int>(c);
+    for (const TrackFix& f : fixes) {
+      TrackerFix t;
+      t.action = f.action;
+      t.marker = f.marker.empty() ? -1 : marker_of.at(f.marker);
+      t.to = f.to.empty() ? -1 : marker_of.at(f.to);
+      t.has_pixel = f.has_pixel;
+      t.pixel = f.pixel;
+      auto& at = fixes_at[f.frame];
+      auto& lines = fix_lines[f.frame];
+      at.resize(names.size());
+      lines.resize(names.size());
+      at[camera_of.at(f.camera)].push_back(t);
+      lines[camera_of.at(f.camera)].push_back(f.line);
+    }
   }
   TrackOutput output;
   FootageReader reader(input.shot, names, options.footage, sizes);
@@ -160,6 +235,23 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   // (CameraFrameTracks::vacant), and the last such frame.
   std::vector<int> vacant_frames(layout.names.size(), 0);
   std::vector<int> vacant_in(layout.names.size(), std::numeric_limits<int>::min());
+  // What the frame's fixes did (a camera whose image was missing applied none).
+  std::set<int> fixed_frames;
+  auto count_fixes = [&](int frame, const std::vector<FixOutcome>& outcome) {
+    const auto lines = fix_lines.find(frame);
+    if (lines == fix_lines.end()) return;
+    fixed_frames.insert(frame);
+    for (size_t c = 0; c < lines->second.size(); ++c) {
+      if (c >= outcome.size()) {
+        for (int line : lines->second[c]) summary.fixes_unmatched_lines.push_back(line);
+        continue;
+      }
+      summary.fixes_applied += outcome[c].applied;
+      for (int i : outcome[c].unmatched) summary.fixes_unmatched_lines.push_back(lines->second[c][i]);
+    }
+  };
+  std::vector<cv::Rect> proxy_crops;          // per camera (input.proxy_dir)
+  std::vector<std::vector<int>> proxy_frames;  // per camera: the frames with a proxy
   Progress progress("track", reader.num_frames());
   // Decoding of frame n + 1 runs beside the detection of frame n.
   auto read_next = [&reader] {
@@ -213,7 +305,11 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
         spdlog::debug("reference frame {} {}: dot size {:.2f} px, {} detections", frame->frame,
                       names[c], dot_size[c], detections[c].size());
       }
-      result = tracker.Start(detections, frame->images, dot_size);
+      const auto fix = fixes_at.find(frame->frame);
+      std::vector<FixOutcome> outcome;
+      result = tracker.Start(detections, frame->images, dot_size,
+                             fix == fixes_at.end() ? nullptr : &fix->second, &outcome);
+      count_fixes(frame->frame, outcome);
       summary.labelling = tracker.labelling();
       if (!summary.labelling.ok) {
         ThrowInputError(input.shot, 0, "cannot label the reference frame {}: {}", frame->frame,
@@ -222,7 +318,27 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       summary.reference_frame = frame->frame;
       started = true;
     } else {
-      result = tracker.Step(detections, frame->images);
+      const auto fix = fixes_at.find(frame->frame);
+      std::vector<FixOutcome> outcome;
+      result = tracker.Step(detections, frame->images,
+                            fix == fixes_at.end() ? nullptr : &fix->second, &outcome);
+      count_fixes(frame->frame, outcome);
+    }
+    if (!input.proxy_dir.empty()) {
+      if (proxy_crops.empty()) {
+        for (int c = 0; c < num_cameras; ++c) {
+          proxy_crops.push_back(ProxyCrop(result[c], frame->images[c].size()));
+          EnsureDirectory(input.proxy_dir / names[c]);
+        }
+        proxy_frames.assign(num_cameras, {});
+      }
+      ParallelFor(0, num_cameras, [&](int64_t c) {
+        if (!present[c]) return;
+        WriteFileAtomic(input.proxy_dir / names[c] / fmt::format("{:06d}.jpg", frame->frame),
+                        ProxyJpeg(frame->images[c], summary.transfer[c] == "srgb", proxy_crops[c],
+                                  input.proxy_height, input.proxy_quality));
+        proxy_frames[c].push_back(frame->frame);
+      });
     }
     ++summary.frames;
     nlohmann::json frame_json;
@@ -264,6 +380,21 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                     options.reference_frame);
   }
   for (const std::string& w : reader.warnings()) summary.warnings.push_back(w);
+  summary.fixes = static_cast<int>(fixes.size());
+  for (const auto& [frame, lines] : fix_lines) {
+    if (fixed_frames.count(frame)) continue;  // a frame not tracked (before the reference, outside the range)
+    for (const auto& camera_lines : lines) {
+      for (int line : camera_lines) summary.fixes_unmatched_lines.push_back(line);
+    }
+  }
+  std::sort(summary.fixes_unmatched_lines.begin(), summary.fixes_unmatched_lines.end());
+  if (!summary.fixes_unmatched_lines.empty()) {
+    summary.warnings.push_back(fmt::format(
+        "{} of the {} fixes of {} not applied (no dot where they point, or a frame not tracked): "
+        "lines {}",
+        summary.fixes_unmatched_lines.size(), fixes.size(), input.fixes.string(),
+        fmt::join(summary.fixes_unmatched_lines, ", ")));
+  }
   std::vector<bool> found(layout.names.size(), false);
   std::map<std::string, size_t> index;
   for (size_t m = 0; m < layout.names.size(); ++m) index[layout.names[m]] = m;
@@ -293,7 +424,25 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   summary.mean_named = views ? static_cast<double>(named_total) / views : 0;
   summary.rows = static_cast<int64_t>(output.tracks.size());
 
+  if (!input.proxy_dir.empty()) {
+    nlohmann::json proxies = {{"height", input.proxy_height},
+                              {"quality", input.proxy_quality},
+                              {"cameras", nlohmann::json::array()}};
+    for (int c = 0; c < num_cameras && c < static_cast<int>(proxy_crops.size()); ++c) {
+      const cv::Rect& r = proxy_crops[c];
+      proxies["cameras"].push_back({{"name", names[c]},
+                                    {"width", sizes[c].width},
+                                    {"height", sizes[c].height},
+                                    {"crop", {r.x, r.y, r.width, r.height}},
+                                    {"frames", proxy_frames[c]}});
+    }
+    WriteFileAtomic(input.proxy_dir / "proxies.json", proxies.dump() + "\n");
+  }
   WriteTracks2dCsv(input.out, output.tracks);
+  // The fixes used are kept beside the tracks (the workspace records them).
+  if (!input.fixes.empty()) {
+    WriteFileAtomic(input.out.parent_path() / "track_fixes_used.csv", TrackFixesCsvText(fixes));
+  }
   OptionFields used;
   TrackOptions copy = options;
   copy.Register(&used);
@@ -321,6 +470,12 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                       {"lateral_deg", summary.labelling.jaw.lateral_deg},
                       {"protrude_mm", summary.labelling.jaw.protrude_mm}}}};
   j["warnings"] = summary.warnings;  // with every frame that failed to decode
+  if (!input.fixes.empty()) {
+    j["fixes"] = {{"file", input.fixes.string()},
+                  {"rows", summary.fixes},
+                  {"applied", summary.fixes_applied},
+                  {"unmatched_lines", summary.fixes_unmatched_lines}};
+  }
   j["never_found"] = summary.never_found;
   j["missing_dots"] = summary.missing_dots;
   j["summary"] = {{"frames", summary.frames},

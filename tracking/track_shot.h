@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "core/tracks_2d.h"
 #include "tracking/dot_detector.h"
@@ -26,6 +27,7 @@ struct TrackOptions {
   int threads = 0;               // worker threads (0 = all cores)
   DotDetectorOptions detect;     // detect.*
   MarkerTrackerOptions tracker;  // track.*
+  DayMarkersOptions day;         // markers: the day's markers (core/day_markers.h)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -38,6 +40,17 @@ struct TrackInput {
   std::filesystem::path out;          // tracks_2d.csv to write
   std::filesystem::path overlay_dir;  // PNGs with the named dots ("" = none)
   std::filesystem::path diagnostics;  // JSON per frame and camera ("" = none)
+  // track_fixes.csv to apply as hard constraints ("" = none;
+  // tracking/track_fixes.h); the fixes used are written beside `out` as
+  // track_fixes_used.csv.
+  std::filesystem::path fixes;
+  // Footage proxies for `hmc review` ("" = none): per camera and tracked
+  // frame a JPEG of the face (the box of the reference frame's named dots
+  // with a wide margin), `proxy_height` rows, written as the frame is
+  // decoded for the tracking anyway; and proxies.json (docs/formats.md).
+  std::filesystem::path proxy_dir;
+  int proxy_height = 360;   // px
+  int proxy_quality = 80;   // JPEG quality (1-100)
 };
 
 struct TrackSummary {
@@ -66,6 +79,11 @@ struct TrackSummary {
   // or painted elsewhere, and then the dots near them may carry wrong
   // names; warned.
   std::vector<std::string> missing_dots;
+  // Track fixes (TrackInput::fixes): rows read, applied, and the lines
+  // of the file whose dot was not found (or whose frame was not tracked).
+  int fixes = 0;
+  int fixes_applied = 0;
+  std::vector<int> fixes_unmatched_lines;
   std::vector<std::string> warnings;
   std::string BriefReport() const;
 };

@@ -22,27 +22,20 @@ namespace hmc {
 void UndistortOptions::Register(OptionFields* fields) {
   footage.Register(fields);
   fields->Add("camera", &camera, "cam0 | cam1 | both (camera names from the calibration)");
-  fields->Add("fov_deg", &fov_deg, "horizontal field of view of the pinhole view (deg)");
-  fields->Add("width", &width, "pinhole image width (px; 0 = the camera's)");
-  fields->Add("height", &height, "pinhole image height (px; 0 = the camera's)");
+  fields->Add("fov_deg", &fov_deg, "horizontal field of view of the pinhole view (deg)")
+      .Above(1).Below(179);
+  fields->Add("width", &width, "pinhole image width (px; 0 = the camera's)").In(0, 16384);
+  fields->Add("height", &height, "pinhole image height (px; 0 = the camera's)").In(0, 16384);
   fields->Add("video", &video, "write an FFV1 .mkv per camera instead of PNG frames");
 }
 
 bool UndistortOptions::Check() const {
-  bool ok = footage.Check();
-  if (!(fov_deg > 1 && fov_deg < 179)) {
-    spdlog::error("undistort options: fov_deg must be in (1, 179)");
-    ok = false;
-  }
-  if (width < 0 || height < 0 || width > 16384 || height > 16384) {
-    spdlog::error("undistort options: width and height must be in [0, 16384]");
-    ok = false;
-  }
+  CHECK_OPTION_LIMITS();
   if (camera.empty()) {
     spdlog::error("undistort options: camera must be a camera name or both");
-    ok = false;
+    return false;
   }
-  return ok;
+  return footage.Check();
 }
 
 std::string UndistortSummary::BriefReport() const {

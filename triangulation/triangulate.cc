@@ -19,6 +19,7 @@
 namespace hmc {
 
 void TriangulateOptions::Register(OptionFields* fields) {
+  day.Register(fields);
   fields->Add("gate_px", &gate_px,
               "largest reprojection residual of a view after refinement (px); larger: "
               "mislabel or bad detection, dropped")

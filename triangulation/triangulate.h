@@ -46,6 +46,7 @@
 
 #include "core/calibration.h"
 #include "core/frame_data.h"
+#include "core/day_markers.h"
 #include "core/options.h"
 #include "core/tracks_2d.h"
 #include "core/types.h"
@@ -53,6 +54,7 @@
 namespace hmc {
 
 struct TriangulateOptions {
+  DayMarkersOptions day;          // markers: the day's markers, for the rim offsets (core/day_markers.h)
   double gate_px = 2.0;           // largest reprojection residual of a view after refinement (px)
   double noise_px = 0.1;          // expected accuracy of the tracks (px, floor of the uncertainty)
   double min_ray_angle_deg = 1.0;  // views whose rays meet at a smaller angle are not triangulated (deg)
