@@ -4,6 +4,8 @@
 // ground truth when it has one, and summary.json (the warnings). The last
 // stage of `hmc run`.
 #include <memory>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -43,10 +45,12 @@ HMC_COMMAND(Report, "", "report",
       WriteOptionsUsed(binding->fields(), dir / "options_used.yaml", "report");
       // What a shoot day's report lists per take (pipeline/batch.h); in a
       // workspace it becomes the stage's command_summary.
+      std::vector<std::string> warnings;
+      for (const ReportWarning& w : summary.warnings) warnings.push_back(w.Line());
       const nlohmann::json brief = {{"stage", "report"},
                                     {"stages_present", summary.stages_present},
                                     {"has_truth", summary.has_truth},
-                                    {"warnings", summary.warnings}};
+                                    {"warnings", warnings}};
       WriteFileAtomic(dir / "summary.json", brief.dump(1) + "\n");
     });
     spdlog::info("report: {} -> {}/report.html", summary.BriefReport(), input->out);
