@@ -1,7 +1,7 @@
 // hmc batch --scheduler slurm (issue 49) on a real one-node SLURM cluster
 // that the test starts and stops (tests/slurm_fixture.h). Labelled `slow`
 // (tests/CMakeLists.txt): a local batch, a SLURM batch and a redone take,
-// about a minute on a busy 2-core machine.
+// 16 s on a quiet 2-core machine, 75-95 s under a load average of 15.
 #include <chrono>
 #include <thread>
 
