@@ -66,6 +66,10 @@ int Status(const fs::path& day, bool wait) {
     const auto it = queue.find(take);
     return it == queue.end() ? std::string() : it->second;
   });
+  // The jobs have ended: batch.json and the day report as they stand now
+  // (the report job's run may have been cancelled, or preceded a task's
+  // end).
+  if (wait && !jobs.array.empty()) WriteDayFiles(day, batch);
   std::fputs(StatusTable(batch).c_str(), stdout);
   std::fputs(SlurmQueueText(jobs).c_str(), stdout);
   int failed = 0;

@@ -4,6 +4,8 @@
 // ground truth when it has one, and summary.json (the warnings). The last
 // stage of `hmc run`.
 #include <memory>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>

@@ -1,7 +1,7 @@
 // hmc batch --scheduler slurm (issue 49) on a real one-node SLURM cluster
 // that the test starts and stops (tests/slurm_fixture.h). Labelled `slow`
 // (tests/CMakeLists.txt): a local batch, a SLURM batch and a redone take,
-// about a minute on a busy 2-core machine.
+// 16 s on a quiet 2-core machine, 75-95 s under a load average of 15.
 #include <chrono>
 #include <thread>
 
@@ -58,7 +58,8 @@ TEST_F(BatchTest, SlurmGivesTheLocalBytesAndRedoesACancelledTakeAlone) {
   auto state = TakesByName(day);
   EXPECT_EQ(state[Take(1)]["state"], "done") << waited.out;
   EXPECT_EQ(state[Take(2)]["state"], "done") << waited.out;
-  EXPECT_NE(state[Take(3)]["state"], "done") << waited.out;
+  // batch.json, rewritten by --status --wait, says so too.
+  EXPECT_EQ(state[Take(3)]["state"], "incomplete") << waited.out;
   EXPECT_NE(waited.out.find(Take(3)), std::string::npos);
 
   // The same command again: only the cancelled take is submitted.
