@@ -55,8 +55,15 @@
 //   `reacquire_gate`: projection under the pose, corrected by the named
 //   neighbours' residuals, unambiguous matches only. A dot named in both
 //   cameras whose rays miss by more than `epipolar_gap_mm` is a swap: the
-//   name is dropped in both for the frame. A dot with no detection in its
-//   gate is hidden: no row, the track is lost until re-acquired.
+//   name is dropped in both for the frame. Last, the search for expected
+//   dots (also at the reference frame): each marker still unnamed that
+//   faces the camera is searched for (DetectDotNear, dot_detector.h) within
+//   `search_gate` x the nearest-dot distance (at most half a dot diameter)
+//   of where the flow or its named neighbours place it, with the ellipse
+//   its normal predicts; a dot found is named where another camera sees
+//   the marker on its ray. A dot with no detection in its gate and none
+//   found by the search is hidden: no row, the track is lost until
+//   re-acquired.
 #pragma once
 
 #include <array>
@@ -90,6 +97,9 @@ struct MarkerTrackerOptions {
   double flow_window = 3;            // Lucas-Kanade window (dot diameters)
   double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
   double jaw_reach_deg = 8;          // largest jaw opening change between frames followed (deg)
+  // Search for an expected dot the blind detector missed: radius (fraction
+  // of the nearest-dot distance; 0 = off).
+  double search_gate = 0.3;
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -131,6 +141,7 @@ struct CameraFrameTracks {
   int lost = 0;                // tracks that ended this frame (dot hidden or not found)
   int reacquired = 0;          // names given to dots that were lost or never seen
   int swaps_caught = 0;        // names dropped by the stereo check
+  int searched = 0;            // names given to dots found by the search for expected dots
   bool skipped = false;        // the camera's image was missing
   // Markers left unnamed that face the camera squarely, placed by named
   // neighbours, with no detection where their dot should be: not painted,
@@ -155,17 +166,20 @@ struct ReferenceLabelling {
 
 class MarkerTracker {
  public:
-  MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout, const MarkerTrackerOptions& options);
+  // `detect`: the detector's options, for the search for expected dots.
+  MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout,
+                const MarkerTrackerOptions& options,
+                const DotDetectorOptions& detect = DotDetectorOptions());
 
   // Labels the reference frame (file comment). Per camera the named dots;
   // labelling() tells how the registration went.
   // images: per camera the frame (CV_8U or CV_16U grey) the detections
   // come from; dot_size_px: per camera, sets the flow window.
-  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections,
+  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& blind,
                                        const std::vector<cv::Mat>& images,
                                        const std::vector<double>& dot_size_px);
   // The next frame; a camera whose image is missing has an empty image.
-  std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& detections,
+  std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& blind,
                                       const std::vector<cv::Mat>& images);
 
   const ReferenceLabelling& labelling() const { return labelling_; }
@@ -178,6 +192,35 @@ class MarkerTracker {
     Vec2 position = Vec2::Zero();
     Vec2 velocity = Vec2::Zero();
   };
+  // How camera c sees the layout `positions` (head space) under
+  // helmet_from_head_, per marker.
+  struct LayoutView {
+    std::vector<char> facing;      // in the image, view cosine > 0.1
+    std::vector<char> squarely;    // view cosine > kSquarelyCos
+    std::vector<Vec2> projection;  // projected marker point (px)
+    std::vector<double> cos;       // view cosine at the marker
+    std::vector<Vec2> normal_dir;  // image direction of the surface normal (unit)
+  };
+  LayoutView ViewLayout(int c, const std::vector<Vec3>& positions) const;
+  // Marker k's projection corrected by the mean residual of its named,
+  // facing layout neighbours (the face is not at neutral); returns how
+  // many neighbours corrected it.
+  int CorrectedProjection(int k, const LayoutView& view,
+                          const std::vector<DotDetection>& detections,
+                          const std::vector<int>& detection_of, Vec2* prediction) const;
+  // The search for the dots the blind detector missed (docs/tracking.md,
+  // "Searching for an expected dot"): per camera, each marker still
+  // unnamed that faces it is searched for where it is expected
+  // (`tracked[c]`: the flow's prediction where `has_tracked[c]`, else the
+  // projection corrected by its named neighbours), with the ellipse its
+  // normal predicts; a dot found is appended to (*detections)[c] and named
+  // where another camera sees the marker on its ray (named there or found
+  // there too). Returns per camera the names given.
+  std::vector<int> SearchExpected(const std::vector<cv::Mat>& images,
+                                  const std::vector<std::vector<Vec2>>& tracked,
+                                  const std::vector<std::vector<char>>& has_tracked,
+                                  std::vector<std::vector<DotDetection>>* detections,
+                                  std::vector<std::vector<int>>* detection_of) const;
   void Register(const std::vector<std::vector<DotDetection>>& detections);
   // Gated assignment of predictions to detections; fills `tracks`.
   void Match(int camera, const std::vector<DotDetection>& detections,
@@ -203,6 +246,7 @@ class MarkerTracker {
   HelmetRig rig_;
   MarkerLayout layout_;
   MarkerTrackerOptions options_;
+  DotDetectorOptions detect_;
   ReferenceLabelling labelling_;
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
