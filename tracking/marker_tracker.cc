@@ -104,6 +104,9 @@ constexpr int kSearchMinNeighbours = 2;
 // than half a dot diameter from that place is not the dot expected (on a
 // lid or a lip beside it, the search finds their edge with the dot).
 constexpr double kSearchMaxRadius = 0.5;
+// Rounds of the search: the dots a round names place their neighbours for
+// the next (a row of thin dots at the forehead's edge, missed together).
+constexpr int kSearchRounds = 3;
 
 int FlowWindow(double dot_size_px, double window) {
   return std::max(7, static_cast<int>(std::lround(window * dot_size_px)) | 1);
@@ -317,6 +320,24 @@ std::vector<int> MarkerTracker::SearchExpected(
   return named;
 }
 
+void MarkerTracker::SearchInRounds(const std::vector<cv::Mat>& images,
+                                   const std::vector<std::vector<Vec2>>& tracked,
+                                   const std::vector<std::vector<char>>& has_tracked,
+                                   std::vector<std::vector<DotDetection>>* detections,
+                                   std::vector<std::vector<int>>* detection_of,
+                                   std::vector<CameraFrameTracks>* out) const {
+  for (int round = 0; round < kSearchRounds; ++round) {
+    const std::vector<int> searched =
+        SearchExpected(images, tracked, has_tracked, detections, detection_of);
+    int any = 0;
+    for (size_t c = 0; c < searched.size(); ++c) {
+      (*out)[c].searched += searched[c];
+      any += searched[c];
+    }
+    if (any == 0) break;
+  }
+}
+
 void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
                                    const std::vector<DotDetection>& detections,
                                    double gate_fraction, bool allow_uncorrected,
@@ -513,11 +534,10 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
                    &detection_of[c], &out[c].vacant);
   }
   StereoCheck(detections, &detection_of, &out);
-  const std::vector<int> searched = SearchExpected(
-      images, std::vector<std::vector<Vec2>>(num_cameras, std::vector<Vec2>(num_markers)),
-      std::vector<std::vector<char>>(num_cameras, std::vector<char>(num_markers, 0)),
-      &detections, &detection_of);
-  for (int c = 0; c < num_cameras; ++c) out[c].searched = searched[c];
+  SearchInRounds(images,
+                 std::vector<std::vector<Vec2>>(num_cameras, std::vector<Vec2>(num_markers)),
+                 std::vector<std::vector<char>>(num_cameras, std::vector<char>(num_markers, 0)),
+                 &detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
     out[c].detections = static_cast<int>(blind[c].size());
     for (int k = 0; k < num_markers; ++k) {
@@ -622,9 +642,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     }
   }
   StereoCheck(detections, &detection_of, &out);
-  const std::vector<int> searched =
-      SearchExpected(images, flow_prediction, flow_predicted, &detections, &detection_of);
-  for (int c = 0; c < num_cameras; ++c) out[c].searched = searched[c];
+  SearchInRounds(images, flow_prediction, flow_predicted, &detections, &detection_of, &out);
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) continue;
     out[c].detections = static_cast<int>(blind[c].size());

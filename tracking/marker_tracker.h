@@ -61,7 +61,8 @@
 //   `search_gate` x the nearest-dot distance (at most half a dot diameter)
 //   of where the flow or its named neighbours place it, with the ellipse
 //   its normal predicts; a dot found is named where another camera sees
-//   the marker on its ray. A dot with no detection in its gate and none
+//   the marker on its ray (in rounds: the names given place their
+//   neighbours for the next). A dot with no detection in its gate and none
 //   found by the search is hidden: no row, the track is lost until
 //   re-acquired.
 #pragma once
@@ -221,6 +222,14 @@ class MarkerTracker {
                                   const std::vector<std::vector<char>>& has_tracked,
                                   std::vector<std::vector<DotDetection>>* detections,
                                   std::vector<std::vector<int>>* detection_of) const;
+  // SearchExpected in rounds while a round names a dot (the names it gives
+  // place their neighbours); adds to (*out)[c].searched.
+  void SearchInRounds(const std::vector<cv::Mat>& images,
+                      const std::vector<std::vector<Vec2>>& tracked,
+                      const std::vector<std::vector<char>>& has_tracked,
+                      std::vector<std::vector<DotDetection>>* detections,
+                      std::vector<std::vector<int>>* detection_of,
+                      std::vector<CameraFrameTracks>* out) const;
   void Register(const std::vector<std::vector<DotDetection>>& detections);
   // Gated assignment of predictions to detections; fills `tracks`.
   void Match(int camera, const std::vector<DotDetection>& detections,
