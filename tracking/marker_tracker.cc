@@ -263,21 +263,24 @@ std::vector<int> MarkerTracker::SearchExpected(
       if (of[k] >= 0) {
         prediction[k] = dets[of[k]].pixel;
         predicted[k] = 1;
-      } else if (view.facing[k] && has_tracked[c][k]) {
-        prediction[k] = tracked[c][k];
-        predicted[k] = 1;
       } else if (view.facing[k]) {
         predicted[k] =
             CorrectedProjection(k, view, dets, of, &prediction[k]) >= kSearchMinNeighbours;
+        if (!predicted[k] && has_tracked[c][k]) {
+          prediction[k] = tracked[c][k];
+          predicted[k] = 1;
+        }
       }
     }
     for (int k = 0; k < num_markers; ++k) {
       if (of[k] >= 0 || !predicted[k] || view.cos[k] < kSearchMinCos) continue;
+      // The spacing counts every marker whose dot may be there: where it is
+      // expected, else its projection (a thin neighbour missed too).
       double nearest = std::numeric_limits<double>::infinity();
       for (int j = 0; j < num_markers; ++j) {
-        if (j != k && predicted[j]) {
-          nearest = std::min(nearest, (prediction[j] - prediction[k]).norm());
-        }
+        if (j == k || !(predicted[j] || view.cos[j] > 0)) continue;
+        const Vec2& at = predicted[j] ? prediction[j] : view.projection[j];
+        nearest = std::min(nearest, (at - prediction[k]).norm());
       }
       ExpectedDot expected;
       expected.pixel = prediction[k];

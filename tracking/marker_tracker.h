@@ -59,7 +59,7 @@
 //   dots (also at the reference frame): each marker still unnamed that
 //   faces the camera is searched for (DetectDotNear, dot_detector.h) within
 //   `search_gate` x the nearest-dot distance (at most half a dot diameter)
-//   of where the flow or its named neighbours place it, with the ellipse
+//   of where its named neighbours (else the flow) place it, with the ellipse
 //   its normal predicts; a dot found is named where another camera sees
 //   the marker on its ray (in rounds: the names given place their
 //   neighbours for the next). A dot with no detection in its gate and none
@@ -211,9 +211,9 @@ class MarkerTracker {
                           const std::vector<int>& detection_of, Vec2* prediction) const;
   // The search for the dots the blind detector missed (docs/tracking.md,
   // "Searching for an expected dot"): per camera, each marker still
-  // unnamed that faces it is searched for where it is expected
-  // (`tracked[c]`: the flow's prediction where `has_tracked[c]`, else the
-  // projection corrected by its named neighbours), with the ellipse its
+  // unnamed that faces it is searched for where it is expected (its
+  // projection corrected by its named neighbours, else `tracked[c]`, the
+  // flow's prediction, where `has_tracked[c]`), with the ellipse its
   // normal predicts; a dot found is appended to (*detections)[c] and named
   // where another camera sees the marker on its ray (named there or found
   // there too). Returns per camera the names given.
