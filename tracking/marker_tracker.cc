@@ -1,10 +1,9 @@
 #include "tracking/marker_tracker.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <unordered_map>
 
 #include <Eigen/Geometry>
@@ -96,7 +95,7 @@ constexpr double kBesideOpeningMm = 5;
 // The search for expected dots looks for markers seen at a view cosine of
 // at least this (issue 44 asks for whole dots down to 0.15; the neutral's
 // normal is not the posed face's), placed by at least this many named
-// neighbours when the flow does not place them.
+// neighbours (else by the flow, if they were tracked into the frame).
 constexpr double kSearchMinCos = 0.1;
 constexpr int kSearchMinNeighbours = 2;
 // The flow and the named neighbours place an unnamed dot within a few
