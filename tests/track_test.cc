@@ -102,13 +102,13 @@ TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
     // Whole dots seen edge-on (issue 44; dots ~4 px here, so a dot at view
     // cosine 0.2 is under a pixel wide): those at 0.3-0.4 are named as
     // often as face-on ones, and those down to 0.15 are centred as well as
-    // full ones; the 0.15-0.3 bin (53-56 % named here since the detector's
-    // level against the closed skin, 44-48 % before) misses the issue's
-    // 99 % (docs/tracking.md).
+    // full ones; the 0.15-0.3 bin (63-64 % named here with the search for
+    // expected dots, 53-56 % before it, 44-48 % before the detector's level
+    // against the closed skin) misses the issue's 99 % (docs/tracking.md).
     ASSERT_TRUE(s.has_whole);
-    EXPECT_GE(s.whole_bins[1].Recall(), 0.5) << "seed " << seed;
+    EXPECT_GE(s.whole_bins[1].Recall(), 0.6) << "seed " << seed;
     EXPECT_GE(s.whole_bins[2].Recall(), 0.9) << "seed " << seed;
-    EXPECT_GE(s.whole_from_015.Recall(), 0.8) << "seed " << seed;
+    EXPECT_GE(s.whole_from_015.Recall(), 0.85) << "seed " << seed;
     EXPECT_LE(s.whole_from_015.median_px, 0.05) << "seed " << seed;
     const nlohmann::json diag = nlohmann::json::parse(ReadFile(out.parent_path() / "d.json"));
     EXPECT_EQ(diag["frames"].size(), 6u);
@@ -167,6 +167,33 @@ TEST_F(TrackTest, LabelsAReferenceFrameWithTheJawOpen) {
 // specularity, dot size and darkness, blur, noise), and the tracker names
 // and centres their dots as on the default set (the same bars as
 // FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds).
+// The search for expected dots (docs/tracking.md, "Searching for an
+// expected dot") against ground truth: on the same shots it names more of
+// the whole dots seen from view cosine 0.15 on than the tracker without
+// it, centres them as well, and names almost no dot wrongly.
+TEST_F(TrackTest, SearchingForExpectedDotsNamesMoreWholeDots) {
+  for (int seed = 1; seed <= 3; ++seed) {
+    const fs::path shot = Shot(fmt::format("shot{}", seed), seed, 6);
+    TrackScore score[2];
+    for (int search = 0; search < 2; ++search) {
+      const fs::path out = dir_ / fmt::format("search{}_{}", seed, search) / "tracks_2d.csv";
+      const CliResult r = Track(shot, out, search ? "" : "--track.search_gate 0");
+      ASSERT_EQ(r.exit_code, 0) << r.err;
+      const std::vector<Track2d> tracks = ReadTracks2dCsv(out);
+      ExpectNoDotNamedTwice(tracks);
+      score[search] = ScoreTracks(tracks, ReadDots2dCsv(shot / "dots_2d.csv"));
+      std::printf("seed %d search %d: %s\n%s\n", seed, search, score[search].BriefReport().c_str(),
+                  score[search].WholeReport().c_str());
+    }
+    const WholeDotBin& off = score[0].whole_from_015;
+    const WholeDotBin& on = score[1].whole_from_015;
+    EXPECT_GT(on.named, off.named) << "seed " << seed;
+    EXPECT_LE(on.median_px, 0.05) << "seed " << seed;
+    EXPECT_LE(score[1].WrongFraction(), 0.01) << "seed " << seed;
+    EXPECT_LE(score[1].HiddenFraction(), 0.005) << "seed " << seed;
+  }
+}
+
 TEST_F(TrackTest, TracksShotsOfVariedSets) {
   std::set<std::string> sets;
   for (int seed = 11; seed <= 12; ++seed) {

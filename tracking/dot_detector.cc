@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 namespace hmc {
@@ -49,6 +50,9 @@ cv::Mat AsFloat(const cv::Mat &grey) {
   return out;
 }
 
+// The side of the closing's disc (odd): a dot's diameter + 2 px.
+int ClosingSide(double dot_size_px) { return static_cast<int>(std::ceil(dot_size_px) + 2) | 1; }
+
 struct Refined {
   bool ok = false;
   Vec2 centre = Vec2::Zero();
@@ -84,6 +88,34 @@ constexpr double kMaxRingIntrusionBesideDark = 0.25;
 // over the pixels darker than this fraction of it.
 constexpr double kGrowContrast = 0.6;
 
+// The background ring of a dot's centroid reaches this far beyond its
+// ellipse (px).
+constexpr double kRingOut = 3.5;
+
+// The search for an expected dot (DetectDotNear): its seeds need this
+// fraction of the blind levels' contrast and noise margin, since a thin
+// dot's pixels are only partly covered and the search looks only where a
+// dot is expected, not over the whole frame.
+constexpr double kGuidedContrast = 0.5;
+// A dot expected thinner than this axis ratio and found elongated must
+// lie across its projected normal: its long axis within asin(0.5) = 30
+// degrees of the expected one.
+constexpr double kGuidedOrientedRatio = 0.6;
+constexpr double kGuidedMaxAxisSine = 0.5;
+// A dot found by its predicted ellipse must be darker inside it than
+// all around it: each quarter of its ring at most this fraction of the
+// inside's mean darkening (a dark region, a crease, a lid's or a lip's
+// edge beside the dot would pull its centroid).
+constexpr double kGuidedMaxAround = 0.75;
+// The expected dot is at most this many diameters long (the blind levels
+// allow 1.9, for dots nearer the lens than most): beside a lid or a lip a
+// longer blob is the dot joined to their dark edge, whose centroid is not
+// the dot's.
+constexpr double kGuidedMaxLength = 1.3;
+// The predicted ellipse is searched for (without a blob) only where the
+// dot is expected at most this wide (px).
+constexpr double kGuidedMaxFaintWidth = 2;
+
 // The blob's shape: the ellipse of its binary second moments, scaled to
 // the blob's area (semi-axes a >= b, a b = area / pi; a = b = the
 // equivalent radius for a round blob), long axis along (ux, uy).
@@ -105,7 +137,7 @@ struct BlobEllipse {
 Refined RefineCentre(const cv::Mat &image, const cv::Mat &labels, int own, Vec2 centre,
                      const BlobEllipse &shape, double sign, double max_intrusion) {
   Refined out;
-  const double ring_in = 1.5, ring_out = 3.5, window = 1.0;  // px beyond the ellipse
+  const double ring_in = 1.5, ring_out = kRingOut, window = 1.0;  // px beyond the ellipse
   const double reach = shape.a + ring_out;
   // The texture floor, scaled by the blob's axis ratio: across a thin
   // ellipse (a dot seen edge-on) every pixel is partly covered, and a
@@ -195,20 +227,143 @@ Refined RefineCentre(const cv::Mat &image, const cv::Mat &labels, int own, Vec2 
   return out;
 }
 
+// The shape of blob `label` (binary mask in `labels`, bounding box `box`,
+// `area` pixels): the ellipse of its binary second moments (axes 4
+// sqrt(lambda_i)), scaled to its area for the centroid's window.
+struct BlobShape {
+  Vec2 centre = Vec2::Zero();  // binary centroid (px)
+  double major = 0, minor = 0;  // axes of the moment ellipse (px)
+  double radius = 0;            // equivalent radius, sqrt(area / pi) (px)
+  BlobEllipse ellipse;
+};
+
+BlobShape MeasureBlob(const cv::Mat &labels, int label, const cv::Rect &box, int area) {
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    const int *row = labels.ptr<int>(y);
+    for (int x = box.x; x < box.x + box.width; ++x) {
+      if (row[x] != label) continue;
+      sx += x;
+      sy += y;
+      sxx += static_cast<double>(x) * x;
+      syy += static_cast<double>(y) * y;
+      sxy += static_cast<double>(x) * y;
+    }
+  }
+  BlobShape out;
+  const double mx = sx / area, my = sy / area;
+  const double cxx = sxx / area - mx * mx + 1.0 / 12, cyy = syy / area - my * my + 1.0 / 12;
+  const double cxy = sxy / area - mx * my;
+  const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+  const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+  out.centre = Vec2(mx, my);
+  out.major = 4 * std::sqrt(tr / 2 + disc);
+  out.minor = 4 * std::sqrt(std::max(1e-9, tr / 2 - disc));
+  out.radius = std::sqrt(area / M_PI);
+  out.ellipse.a = out.radius * std::sqrt(out.major / out.minor);
+  out.ellipse.b = out.radius * std::sqrt(out.minor / out.major);
+  const double angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+  out.ellipse.ux = std::cos(angle);
+  out.ellipse.uy = std::sin(angle);
+  return out;
+}
+
+// A painted disc seen at any angle is at most its diameter long (the lip
+// line and lashes are longer), an ellipse (fill of its moment ellipse near
+// 1), and not thinner than max_elongation. The thresholded blob of a thin
+// ellipse can be a single pixel wide (minor 1.15 px) where the ellipse is
+// up to a pixel wider (its partly covered rim falls below the threshold),
+// so the ratio is tested here with that pixel added and again, exactly,
+// on the darkening's own moments after the centroid.
+bool PlausibleDot(const BlobShape &blob, int area, double min_d, double max_d,
+                  const DotDetectorOptions &options) {
+  if (blob.major < min_d || blob.major > max_d ||
+      blob.major > options.max_elongation * (blob.minor + 1)) {
+    return false;
+  }
+  return area >= options.min_fill * M_PI / 4 * blob.major * blob.minor;
+}
+
+DotDetection MakeDetection(const Refined &refined, const Vec2 &offset, double major) {
+  DotDetection dot;
+  dot.pixel = refined.centre + offset;
+  dot.diameter_px = major;
+  dot.contrast = refined.contrast;
+  dot.elongation = refined.elongation;
+  dot.score = std::clamp(refined.contrast / 0.5, 0.0, 1.0) *
+              std::clamp(1.0 / refined.elongation, 0.0, 1.0);
+  return dot;
+}
+
 // The sensor noise sigma, from horizontal neighbour differences on lit
 // pixels (every 4th row): for independent noise, I(x+1) - I(x) has std
 // sqrt(2) sigma, and its median absolute value is 0.6745 of that std.
-double EstimateNoise(const cv::Mat &image) {
+double EstimateNoise(const cv::Mat &image, int row_step = 4) {
   std::vector<float> diffs;
-  for (int y = 0; y < image.rows; y += 4) {
+  for (int y = 0; y < image.rows; y += row_step) {
     const float *row = image.ptr<float>(y);
     for (int x = 0; x + 1 < image.cols; x += 2) {
       if (row[x] > 0.1f) diffs.push_back(std::abs(row[x + 1] - row[x]));
     }
   }
-  if (diffs.size() < 100) return 0;
+  if (diffs.size() < 50) return 0;
   std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
   return diffs[diffs.size() / 2] / (0.6745 * std::sqrt(2.0));
+}
+
+// The skin without the dots: the image closed (opened, for bright dots)
+// by a disc a little wider than a dot, so that no dot, however seen,
+// holds it; dark structures wider than the disc (the dark beyond a
+// silhouette, a shadowed lid, an eyebrow, a nostril) stay. A square's
+// corners would not follow a round dark region, whose rim would then
+// read as darker than the skin.
+// The disc is a regular octagon, a square (separable) grown by a
+// diamond (iterated 3 x 3 crosses), several times faster than a true
+// disc; a round region's rim departs from it by under half a pixel.
+// On the frame's own type (8 or 16 bit: several times faster than on
+// floats); the closing commutes with the conversion, which is monotonic.
+// Returns floats in [0, 1].
+cv::Mat ClosedSkin(const cv::Mat &grey, double dot_size_px, double sign) {
+  const int close_side = ClosingSide(dot_size_px);
+  const int diamond = static_cast<int>(std::lround(0.293 * close_side));
+  const cv::Mat square = cv::getStructuringElement(
+      cv::MORPH_RECT, cv::Size(close_side - 2 * diamond, close_side - 2 * diamond));
+  const cv::Mat cross = cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3));
+  auto grow = [&](const cv::Mat &in, cv::Mat *result, int op) {
+    cv::morphologyEx(in, *result, op, square, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+    if (diamond > 0) {
+      cv::morphologyEx(*result, *result, op, cross, cv::Point(-1, -1), diamond,
+                       cv::BORDER_REPLICATE);
+    }
+  };
+  cv::Mat skin;
+  grow(grey, &skin, sign > 0 ? cv::MORPH_DILATE : cv::MORPH_ERODE);
+  grow(skin, &skin, sign > 0 ? cv::MORPH_ERODE : cv::MORPH_DILATE);
+  return AsFloat(skin);
+}
+
+// The pixels darker (brighter, sign -1) than `background` by `c` relative
+// and `s` absolute seed blobs, grown over those at kGrowContrast of both
+// (one pass gives the grown mask and the seeds).
+void HysteresisMask(const cv::Mat &image, const cv::Mat &background, double contrast, double step,
+                    double sign, cv::Mat *mask, std::vector<cv::Point> *seeds) {
+  mask->create(image.size(), CV_8U);
+  const float c = static_cast<float>(contrast), s = static_cast<float>(step);
+  const float grown_c = static_cast<float>(kGrowContrast) * c;
+  const float grown_s = static_cast<float>(kGrowContrast) * s;
+  const float polarity = static_cast<float>(sign);
+  for (int y = 0; y < image.rows; ++y) {
+    const float *row = image.ptr<float>(y);
+    const float *b = background.ptr<float>(y);
+    uchar *m = mask->ptr<uchar>(y);
+    for (int x = 0; x < image.cols; ++x) {
+      const float darkening = polarity * (b[x] - row[x]);  // brightening for bright dots
+      m[x] = darkening > std::max(grown_c * b[x], grown_s) ? 255 : 0;
+    }
+    for (int x = 0; x < image.cols; ++x) {
+      if (m[x] && polarity * (b[x] - row[x]) > std::max(c * b[x], s)) seeds->emplace_back(x, y);
+    }
+  }
 }
 
 std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &options,
@@ -223,33 +378,7 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
   cv::Mat mean;
   cv::boxFilter(image, mean, CV_32F, cv::Size(box, box), cv::Point(-1, -1), true,
                 cv::BORDER_REPLICATE);
-  // The skin without the dots: the image closed (opened, for bright dots)
-  // by a disc a little wider than a dot, so that no dot, however seen,
-  // holds it; dark structures wider than the disc (the dark beyond a
-  // silhouette, a shadowed lid, an eyebrow, a nostril) stay. A square's
-  // corners would not follow a round dark region, whose rim would then
-  // read as darker than the skin.
-  // The disc is a regular octagon, a square (separable) grown by a
-  // diamond (iterated 3 x 3 crosses), several times faster than a true
-  // disc; a round region's rim departs from it by under half a pixel.
-  const int close_side = static_cast<int>(std::ceil(dot_size_px) + 2) | 1;
-  const int diamond = static_cast<int>(std::lround(0.293 * close_side));
-  const cv::Mat square = cv::getStructuringElement(
-      cv::MORPH_RECT, cv::Size(close_side - 2 * diamond, close_side - 2 * diamond));
-  const cv::Mat cross = cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3));
-  auto grow = [&](const cv::Mat &in, cv::Mat *result, int op) {
-    cv::morphologyEx(in, *result, op, square, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
-    if (diamond > 0) {
-      cv::morphologyEx(*result, *result, op, cross, cv::Point(-1, -1), diamond,
-                       cv::BORDER_REPLICATE);
-    }
-  };
-  // On the frame's own type (8 or 16 bit: several times faster than on
-  // floats); the closing commutes with the conversion, which is monotonic.
-  cv::Mat skin;
-  grow(grey, &skin, sign > 0 ? cv::MORPH_DILATE : cv::MORPH_ERODE);
-  grow(skin, &skin, sign > 0 ? cv::MORPH_ERODE : cv::MORPH_DILATE);
-  skin = AsFloat(skin);
+  const cv::Mat skin = ClosedSkin(grey, dot_size_px, sign);
   std::vector<DotDetection> out;
   // Three levels: the blobs at min_contrast, then at twice it, which splits
   // a dot from a fainter dark feature it touches (an eyelid crease, the lip
@@ -288,23 +417,7 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
     std::vector<cv::Point> seeds;
     cv::Mat mask;
     if (level == 2) {
-      mask.create(image.size(), CV_8U);
-      const float c = static_cast<float>(contrast), s = static_cast<float>(step);
-      const float grown_c = static_cast<float>(kGrowContrast) * c;
-      const float grown_s = static_cast<float>(kGrowContrast) * s;
-      const float polarity = static_cast<float>(sign);
-      for (int y = 0; y < image.rows; ++y) {
-        const float *row = image.ptr<float>(y);
-        const float *b = background.ptr<float>(y);
-        uchar *m = mask.ptr<uchar>(y);
-        for (int x = 0; x < image.cols; ++x) {
-          const float darkening = polarity * (b[x] - row[x]);  // brightening for bright dots
-          m[x] = darkening > std::max(grown_c * b[x], grown_s) ? 255 : 0;
-        }
-        for (int x = 0; x < image.cols; ++x) {
-          if (m[x] && polarity * (b[x] - row[x]) > std::max(c * b[x], s)) seeds.emplace_back(x, y);
-        }
-      }
+      HysteresisMask(image, background, contrast, step, sign, &mask, &seeds);
     } else {
       mask = threshold(contrast, step);
     }
@@ -320,46 +433,11 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
       if (area < min_area || area > max_area || !seeded[i]) continue;
       const int left = stats.at<int>(i, cv::CC_STAT_LEFT), top = stats.at<int>(i, cv::CC_STAT_TOP);
       const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-      // Shape of the blob from its binary second moments: an ellipse of
-      // semi-axes 2 sqrt(lambda) has those moments.
-      double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-      for (int y = top; y < top + h; ++y) {
-        const int *row = labels.ptr<int>(y);
-        for (int x = left; x < left + w; ++x) {
-          if (row[x] != i) continue;
-          sx += x;
-          sy += y;
-          sxx += static_cast<double>(x) * x;
-          syy += static_cast<double>(y) * y;
-          sxy += static_cast<double>(x) * y;
-        }
-      }
-      const double mx = sx / area, my = sy / area;
-      const double cxx = sxx / area - mx * mx + 1.0 / 12, cyy = syy / area - my * my + 1.0 / 12;
-      const double cxy = sxy / area - mx * my;
-      const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
-      const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
-      const double major = 4 * std::sqrt(tr / 2 + disc),
-                   minor = 4 * std::sqrt(std::max(1e-9, tr / 2 - disc));
-      // A painted disc seen at any angle is at most its diameter long (the
-      // lip line and lashes are longer), an ellipse (fill of its moment
-      // ellipse near 1), and not thinner than max_elongation. The
-      // thresholded blob of a thin ellipse can be a single pixel wide
-      // (minor 1.15 px) where the ellipse is up to a pixel wider (its
-      // partly covered rim falls below the threshold), so the ratio is
-      // tested here with that pixel added and again, exactly, on the
-      // darkening's own moments after the centroid.
-      if (major < min_d || major > max_d || major > options.max_elongation * (minor + 1)) {
-        continue;
-      }
-      if (area < options.min_fill * M_PI / 4 * major * minor) continue;
-      const double radius = std::sqrt(area / M_PI);
-      BlobEllipse shape;
-      shape.a = radius * std::sqrt(major / minor);
-      shape.b = radius * std::sqrt(minor / major);
-      const double angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
-      shape.ux = std::cos(angle);
-      shape.uy = std::sin(angle);
+      const cv::Rect box(left, top, w, h);
+      const BlobShape blob = MeasureBlob(labels, i, box, area);
+      if (!PlausibleDot(blob, area, min_d, max_d, options)) continue;
+      const BlobEllipse &shape = blob.ellipse;
+      const double radius = blob.radius, major = blob.major;
       const double margin = border + shape.a + 4.5;
       const Vec2 start(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
       if (start.x() < margin || start.y() < margin || start.x() + margin >= image.cols ||
@@ -379,13 +457,7 @@ std::vector<DotDetection> Detect(const cv::Mat &grey, const DotDetectorOptions &
                        level == 2 ? kMaxRingIntrusionBesideDark : kMaxRingIntrusion);
       if (!refined.ok || refined.elongation > options.max_elongation) continue;
       if ((refined.centre - start).norm() > radius + 1) continue;
-      DotDetection dot;
-      dot.pixel = refined.centre;
-      dot.diameter_px = major;
-      dot.contrast = refined.contrast;
-      dot.elongation = refined.elongation;
-      dot.score = std::clamp(refined.contrast / 0.5, 0.0, 1.0) *
-                  std::clamp(1.0 / refined.elongation, 0.0, 1.0);
+      const DotDetection dot = MakeDetection(refined, Vec2::Zero(), major);
       if (level > 0) {
         bool duplicate = false;
         for (size_t j = 0; j < earlier_count && !duplicate; ++j) {
@@ -408,6 +480,184 @@ std::vector<DotDetection> DetectDots(const cv::Mat &grey, const DotDetectorOptio
                                      double dot_size_px) {
   return Detect(grey, options, dot_size_px, options.min_size * dot_size_px,
                 options.max_size * dot_size_px);
+}
+
+// The centroid of the relative darkening against the closed skin `skin`
+// over the ellipse `shape` grown by 1 px, above the texture floor (scaled
+// by the axis ratio as in RefineCentre), iterated with the ellipse
+// re-centred; with the mean darkening inside the ellipse (relative and
+// absolute) and the largest mean relative darkening of the four quarters
+// (beyond either end, beside either side) of a ring 1.5-3.5 px beyond it.
+struct SkinCentroid {
+  bool ok = false;
+  Vec2 centre = Vec2::Zero();
+  double inside = 0, inside_step = 0, around = 0;
+};
+
+SkinCentroid CentreOnSkin(const cv::Mat &image, const cv::Mat &skin, Vec2 centre,
+                          const BlobEllipse &shape, double sign) {
+  SkinCentroid out;
+  const double floor = kTextureFloor * shape.b / shape.a;
+  const double reach = shape.a + kRingOut;
+  for (int iteration = 0; iteration < 3; ++iteration) {
+    const int x0 = static_cast<int>(std::floor(centre.x() - reach));
+    const int x1 = static_cast<int>(std::ceil(centre.x() + reach));
+    const int y0 = static_cast<int>(std::floor(centre.y() - reach));
+    const int y1 = static_cast<int>(std::ceil(centre.y() + reach));
+    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return SkinCentroid();
+    double sw = 0, sx = 0, sy = 0, in = 0, in_step = 0;
+    double ring[4] = {0, 0, 0, 0};
+    int n_in = 0, n_ring[4] = {0, 0, 0, 0};
+    for (int y = y0; y <= y1; ++y) {
+      const float *row = image.ptr<float>(y);
+      const float *b = skin.ptr<float>(y);
+      for (int x = x0; x <= x1; ++x) {
+        if (!(b[x] > 1e-4f)) continue;
+        const double dx = x - centre.x(), dy = y - centre.y();
+        const double step = sign * (b[x] - row[x]);
+        const double w = step / b[x];
+        if (shape.Inside(dx, dy, 0.5)) {
+          in += w;
+          in_step += step;
+          ++n_in;
+        } else if (shape.Inside(dx, dy, kRingOut) && !shape.Inside(dx, dy, 1.5)) {
+          // Quadrant of the ring: beyond either end, beside either side.
+          const double u = shape.ux * dx + shape.uy * dy, v = -shape.uy * dx + shape.ux * dy;
+          const int q = std::abs(u) / shape.a > std::abs(v) / shape.b ? (u > 0 ? 0 : 1)
+                                                                      : (v > 0 ? 2 : 3);
+          ring[q] += w;
+          ++n_ring[q];
+        }
+        if (!shape.Inside(dx, dy, 1.0)) continue;
+        const double v = std::max(0.0, w - floor);
+        sw += v;
+        sx += v * dx;
+        sy += v * dy;
+      }
+    }
+    if (!(sw > 0) || n_in == 0) return SkinCentroid();
+    out.inside = in / n_in;
+    out.inside_step = in_step / n_in;
+    out.around = 0;
+    for (int q = 0; q < 4; ++q) {
+      if (n_ring[q] == 0) return SkinCentroid();
+      out.around = std::max(out.around, ring[q] / n_ring[q]);
+    }
+    const Vec2 shift(sx / sw, sy / sw);
+    centre += shift;
+    if (shift.norm() < 1e-3) break;
+  }
+  out.ok = true;
+  out.centre = centre;
+  return out;
+}
+
+std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetectorOptions &options,
+                                          double dot_size_px, const ExpectedDot &expected) {
+  const double sign = options.polarity == "bright" ? -1 : 1;
+  // The patch holds the search disc, the largest dot, its ring and the
+  // closing's reach.
+  const int half = static_cast<int>(std::ceil(expected.radius_px +
+                                              0.5 * options.max_size * dot_size_px + kRingOut +
+                                              2 + ClosingSide(dot_size_px)));
+  const cv::Rect rect(static_cast<int>(std::lround(expected.pixel.x())) - half,
+                      static_cast<int>(std::lround(expected.pixel.y())) - half, 2 * half + 1,
+                      2 * half + 1);
+  const int border = options.border_px;
+  if (rect.x < border || rect.y < border || rect.x + rect.width > grey.cols - border ||
+      rect.y + rect.height > grey.rows - border) {
+    return std::nullopt;
+  }
+  const cv::Mat patch = grey(rect);
+  cv::Mat image = AsFloat(patch);
+  if (image.data == patch.data) image = image.clone();
+  const cv::Mat skin = ClosedSkin(patch, dot_size_px, sign);
+  const Vec2 at = expected.pixel - Vec2(rect.x, rect.y);
+  const double noise = EstimateNoise(image, 1);
+  bool ambiguous = false;
+  auto blob_search = [&]() -> std::optional<DotDetection> {
+    // Seeds at kGuidedContrast of the blind levels' contrast and noise
+    // margin, grown as at the closed-skin level.
+    const double step = kGuidedContrast * std::max(options.min_step, kNoiseSigmas * noise);
+    cv::Mat mask;
+    std::vector<cv::Point> seeds;
+    HysteresisMask(image, skin, kGuidedContrast * options.min_contrast, step, sign, &mask, &seeds);
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+    std::vector<char> seeded(n, 0);
+    for (const cv::Point &p : seeds) seeded[labels.at<int>(p)] = 1;
+    const double min_d = options.min_size * dot_size_px, max_d = options.max_size * dot_size_px;
+    int found = -1;
+    BlobShape found_shape;
+    for (int i = 1; i < n; ++i) {
+      const Vec2 centroid(centroids.at<double>(i, 0), centroids.at<double>(i, 1));
+      if ((centroid - at).norm() > expected.radius_px) continue;
+      const int area = stats.at<int>(i, cv::CC_STAT_AREA);
+      if (area < 2 || area > M_PI / 4 * max_d * max_d || !seeded[i]) continue;
+      const cv::Rect box(stats.at<int>(i, cv::CC_STAT_LEFT), stats.at<int>(i, cv::CC_STAT_TOP),
+                         stats.at<int>(i, cv::CC_STAT_WIDTH), stats.at<int>(i, cv::CC_STAT_HEIGHT));
+      const BlobShape shape = MeasureBlob(labels, i, box, area);
+      if (!PlausibleDot(shape, area, min_d, std::min(max_d, kGuidedMaxLength * dot_size_px),
+                        options)) {
+        continue;
+      }
+      // Two dark blobs where one dot is expected: not told apart here.
+      if (found >= 0) {
+        ambiguous = true;
+        return std::optional<DotDetection>();
+      }
+      found = i;
+      found_shape = shape;
+    }
+    if (found < 0) return std::optional<DotDetection>();
+    const Refined refined = RefineCentre(image, labels, found, found_shape.centre,
+                                         found_shape.ellipse, sign, kMaxRingIntrusionBesideDark);
+    if (!refined.ok || refined.elongation > options.max_elongation ||
+        (refined.centre - found_shape.centre).norm() > found_shape.radius + 1 ||
+        (refined.centre - at).norm() > expected.radius_px) {
+      return std::optional<DotDetection>();
+    }
+    // A thin dot lies across its projected normal: a dark streak along it
+    // (a crease, a lash, a lid's edge) is not the dot.
+    if (expected.axis_ratio < kGuidedOrientedRatio &&
+        refined.elongation > 1 / kGuidedOrientedRatio) {
+      const double along = std::abs(found_shape.ellipse.ux * expected.short_axis.x() +
+                                    found_shape.ellipse.uy * expected.short_axis.y());
+      if (along > kGuidedMaxAxisSine) return std::optional<DotDetection>();
+    }
+    return MakeDetection(refined, Vec2(rect.x, rect.y), found_shape.major);
+};
+  if (std::optional<DotDetection> dot = blob_search()) return dot;
+  if (ambiguous) return std::nullopt;
+  // A dot wider than that thresholds to a blob whatever its contrast: if
+  // none was found, it is joined to a dark edge (a lid, a lip), whose
+  // darkening would pull the window's centroid.
+  if (dot_size_px * expected.axis_ratio > kGuidedMaxFaintWidth) return std::nullopt;
+  // No blob: the dot too faint or too thin for a threshold on its pixels
+  // (a 3 px dot at view cosine 0.2 is under a pixel wide). Its ellipse is
+  // predicted (long axis the dot's diameter across the projected normal,
+  // short axis times the view cosine): the darkening against the closed
+  // skin is centred in that window, and taken for the dot where it is
+  // strong inside and not around it.
+  BlobEllipse shape;
+  shape.a = 0.5 * dot_size_px;
+  shape.b = shape.a * std::clamp(expected.axis_ratio, 1 / options.max_elongation, 1.0);
+  shape.ux = -expected.short_axis.y();
+  shape.uy = expected.short_axis.x();
+  const SkinCentroid fit = CentreOnSkin(image, skin, at, shape, sign);
+  if (!fit.ok) return std::nullopt;
+  if ((fit.centre - at).norm() > expected.radius_px) return std::nullopt;
+  const double step = std::max(options.min_step, kNoiseSigmas * noise);
+  if (fit.inside < options.min_contrast || fit.inside_step < kGuidedContrast * step) {
+    return std::nullopt;
+  }
+  if (fit.around > kGuidedMaxAround * fit.inside) return std::nullopt;
+  Refined refined;
+  refined.ok = true;
+  refined.centre = fit.centre;
+  refined.contrast = fit.inside;
+  refined.elongation = shape.a / shape.b;
+  return MakeDetection(refined, Vec2(rect.x, rect.y), 2 * shape.a);
 }
 
 double MeasureDotSize(const cv::Mat &grey, const DotDetectorOptions &options) {

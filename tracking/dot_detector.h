@@ -50,6 +50,7 @@
 // Score in [0, 1]: contrast (relative to 0.5) times roundness.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -88,6 +89,25 @@ struct DotDetection {
 // CV_32F in [0, 1]). Sorted by y then x.
 std::vector<DotDetection> DetectDots(const cv::Mat& grey, const DotDetectorOptions& options,
                                      double dot_size_px);
+
+// A dot where the tracker expects one (marker_tracker.h): its predicted
+// centre, how far off it may be, and the ellipse its surface normal
+// predicts (docs/tracking.md, "Searching for an expected dot").
+struct ExpectedDot {
+  Vec2 pixel = Vec2::Zero();          // predicted centre (px)
+  double radius_px = 0;               // search radius around it (px)
+  double axis_ratio = 1;              // predicted short / long axis: the view cosine
+  Vec2 short_axis = Vec2(1, 0);       // unit image direction of the short axis (the normal's)
+};
+
+// Searches for the one dot expected at `expected`: in a patch around it,
+// against the closed skin as at DetectDots' third level, seeds at half its
+// contrast and noise margin (the search looks only where a dot is due),
+// the blob's size and shape tested as by DetectDots, its centre refined
+// the same way; the dot must lie across its projected normal when thin.
+// Nothing when no blob or two blobs lie within the radius (ambiguous).
+std::optional<DotDetection> DetectDotNear(const cv::Mat& grey, const DotDetectorOptions& options,
+                                          double dot_size_px, const ExpectedDot& expected);
 
 // The dot diameter of a frame: detection with a wide size range (2 to 16
 // px), then the median diameter of the round, well-filled blobs. Returns 0

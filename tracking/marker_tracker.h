@@ -55,8 +55,16 @@
 //   `reacquire_gate`: projection under the pose, corrected by the named
 //   neighbours' residuals, unambiguous matches only. A dot named in both
 //   cameras whose rays miss by more than `epipolar_gap_mm` is a swap: the
-//   name is dropped in both for the frame. A dot with no detection in its
-//   gate is hidden: no row, the track is lost until re-acquired.
+//   name is dropped in both for the frame. Last, the search for expected
+//   dots (also at the reference frame): each marker still unnamed that
+//   faces the camera is searched for (DetectDotNear, dot_detector.h) within
+//   `search_gate` x the nearest-dot distance (at most half a dot diameter)
+//   of where its named neighbours (else the flow) place it, with the ellipse
+//   its normal predicts; a dot found is named where another camera sees
+//   the marker on its ray (in rounds: the names given place their
+//   neighbours for the next). A dot with no detection in its gate and none
+//   found by the search is hidden: no row, the track is lost until
+//   re-acquired.
 #pragma once
 
 #include <array>
@@ -91,6 +99,9 @@ struct MarkerTrackerOptions {
   double flow_window = 3;            // Lucas-Kanade window (dot diameters)
   double flow_check_px = 0.5;        // largest forward-backward flow disagreement (px)
   double jaw_reach_deg = 8;          // largest jaw opening change between frames followed (deg)
+  // Search for an expected dot the blind detector missed: radius (fraction
+  // of the nearest-dot distance; 0 = off).
+  double search_gate = 0.3;
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -132,6 +143,7 @@ struct CameraFrameTracks {
   int lost = 0;                // tracks that ended this frame (dot hidden or not found)
   int reacquired = 0;          // names given to dots that were lost or never seen
   int swaps_caught = 0;        // names dropped by the stereo check
+  int searched = 0;            // names given to dots found by the search for expected dots
   bool skipped = false;        // the camera's image was missing
   // Markers left unnamed that face the camera squarely, placed by named
   // neighbours, with no detection where their dot should be: not painted,
@@ -172,7 +184,10 @@ struct ReferenceLabelling {
 
 class MarkerTracker {
  public:
-  MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout, const MarkerTrackerOptions& options);
+  // `detect`: the detector's options, for the search for expected dots.
+  MarkerTracker(const HelmetRig& rig, const MarkerLayout& layout,
+                const MarkerTrackerOptions& options,
+                const DotDetectorOptions& detect = DotDetectorOptions());
 
   // Labels the reference frame (file comment). Per camera the named dots;
   // labelling() tells how the registration went.
@@ -181,13 +196,13 @@ class MarkerTracker {
   // fixes: per camera the frame's track fixes (null: none), applied as
   // hard constraints after the naming (ApplyFixes); the tracking goes on
   // from the fixed names. outcome: per camera what they did.
-  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& detections,
+  std::vector<CameraFrameTracks> Start(const std::vector<std::vector<DotDetection>>& blind,
                                        const std::vector<cv::Mat>& images,
                                        const std::vector<double>& dot_size_px,
                                        const std::vector<std::vector<TrackerFix>>* fixes = nullptr,
                                        std::vector<FixOutcome>* outcome = nullptr);
   // The next frame; a camera whose image is missing has an empty image.
-  std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& detections,
+  std::vector<CameraFrameTracks> Step(const std::vector<std::vector<DotDetection>>& blind,
                                       const std::vector<cv::Mat>& images,
                                       const std::vector<std::vector<TrackerFix>>* fixes = nullptr,
                                       std::vector<FixOutcome>* outcome = nullptr);
@@ -202,6 +217,43 @@ class MarkerTracker {
     Vec2 position = Vec2::Zero();
     Vec2 velocity = Vec2::Zero();
   };
+  // How camera c sees the layout `positions` (head space) under
+  // helmet_from_head_, per marker.
+  struct LayoutView {
+    std::vector<char> facing;      // in the image, view cosine > 0.1
+    std::vector<char> squarely;    // view cosine > kSquarelyCos
+    std::vector<Vec2> projection;  // projected marker point (px)
+    std::vector<double> cos;       // view cosine at the marker
+    std::vector<Vec2> normal_dir;  // image direction of the surface normal (unit)
+  };
+  LayoutView ViewLayout(int c, const std::vector<Vec3>& positions) const;
+  // Marker k's projection corrected by the mean residual of its named,
+  // facing layout neighbours (the face is not at neutral); returns how
+  // many neighbours corrected it.
+  int CorrectedProjection(int k, const LayoutView& view,
+                          const std::vector<DotDetection>& detections,
+                          const std::vector<int>& detection_of, Vec2* prediction) const;
+  // The search for the dots the blind detector missed (docs/tracking.md,
+  // "Searching for an expected dot"): per camera, each marker still
+  // unnamed that faces it is searched for where it is expected (its
+  // projection corrected by its named neighbours, else `tracked[c]`, the
+  // flow's prediction, where `has_tracked[c]`), with the ellipse its
+  // normal predicts; a dot found is appended to (*detections)[c] and named
+  // where another camera sees the marker on its ray (named there or found
+  // there too). Returns per camera the names given.
+  std::vector<int> SearchExpected(const std::vector<cv::Mat>& images,
+                                  const std::vector<std::vector<Vec2>>& tracked,
+                                  const std::vector<std::vector<char>>& has_tracked,
+                                  std::vector<std::vector<DotDetection>>* detections,
+                                  std::vector<std::vector<int>>* detection_of) const;
+  // SearchExpected in rounds while a round names a dot (the names it gives
+  // place their neighbours); adds to (*out)[c].searched.
+  void SearchInRounds(const std::vector<cv::Mat>& images,
+                      const std::vector<std::vector<Vec2>>& tracked,
+                      const std::vector<std::vector<char>>& has_tracked,
+                      std::vector<std::vector<DotDetection>>* detections,
+                      std::vector<std::vector<int>>* detection_of,
+                      std::vector<CameraFrameTracks>* out) const;
   void Register(const std::vector<std::vector<DotDetection>>& detections);
   // Gated assignment of predictions to detections; fills `tracks`.
   void Match(int camera, const std::vector<DotDetection>& detections,
@@ -247,6 +299,7 @@ class MarkerTracker {
   HelmetRig rig_;
   MarkerLayout layout_;
   MarkerTrackerOptions options_;
+  DotDetectorOptions detect_;
   ReferenceLabelling labelling_;
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
   std::vector<std::vector<char>> absent_;     // [camera][marker]: set by an `absent` fix

@@ -157,6 +157,7 @@ nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) 
   j["lost"] = t.lost;
   j["reacquired"] = t.reacquired;
   j["swaps_caught"] = t.swaps_caught;
+  j["searched"] = t.searched;
   j["skipped"] = t.skipped;
   if (!error.empty()) j["error"] = error;
   return j;
@@ -224,7 +225,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   if (!input.overlay_dir.empty()) EnsureDirectory(input.overlay_dir);
   if (!input.out.parent_path().empty()) EnsureDirectory(input.out.parent_path());
 
-  MarkerTracker tracker(rig, layout, options.tracker);
+  MarkerTracker tracker(rig, layout, options.tracker, options.detect);
   nlohmann::json frames_json = nlohmann::json::array();
   std::vector<double> dot_size(num_cameras, options.detect.dot_size_px);
   std::vector<double> reference_level(num_cameras, 0);  // mean linear level, per camera
