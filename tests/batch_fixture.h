@@ -26,18 +26,10 @@ class BatchTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new fs::path(FreshTestDir("hmc_batch_test", 49));
     const fs::path& d = *dir_;
-    ASSERT_EQ(RunHmc(fmt::format("actor synth --out '{}' --seed 7 --grid_u 96 --grid_v 80 "
-                                 "--dataset_inbetweens false --dataset_combos false",
-                                 (d / "actor").string()),
-                     d)
-                  .exit_code,
-              0);
+    ASSERT_EQ(SynthTestActor(d / "actor", d).exit_code, 0);
     // Three takes of different seeds.
     for (int seed : {1, 2, 3}) {
-      const CliResult shot = RunHmc(
-          fmt::format("synth shot --actor '{}' --out '{}' --frames {} --seed {} --contact_frames 0",
-                      (d / "actor").string(), (d / "takes" / Take(seed)).string(), kFrames, seed),
-          d);
+      const CliResult shot = SynthTestShot(d / "actor", d / "takes" / Take(seed), kFrames, seed, d);
       ASSERT_EQ(shot.exit_code, 0) << shot.err;
     }
   }

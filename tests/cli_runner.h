@@ -39,4 +39,25 @@ inline CliResult RunHmc(const std::string& arguments,
   return result;
 }
 
+// The small actor most CLI tests share (seed 7, 96 x 80, no in-betweens or
+// combinations: quick to index), written to `out`.
+inline CliResult SynthTestActor(const std::filesystem::path& out,
+                                const std::filesystem::path& scratch) {
+  return RunHmc(fmt::format("actor synth --out '{}' --seed 7 --grid_u 96 --grid_v 80 "
+                            "--dataset_inbetweens false --dataset_combos false",
+                            out.string()),
+                scratch);
+}
+
+// A short shot of `actor` with no contact sheet; `extra`: more flags.
+inline CliResult SynthTestShot(const std::filesystem::path& actor,
+                               const std::filesystem::path& out, int frames, int seed,
+                               const std::filesystem::path& scratch,
+                               const std::string& extra = "") {
+  return RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames {} --seed {} "
+                            "--contact_frames 0 {}",
+                            actor.string(), out.string(), frames, seed, extra),
+                scratch);
+}
+
 }  // namespace hmc

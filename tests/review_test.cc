@@ -34,16 +34,8 @@ class ReviewTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new fs::path(FreshTestDir("hmc_review_test", 11));
     const fs::path& d = *dir_;
-    ASSERT_EQ(RunHmc(fmt::format("actor synth --out '{}' --seed 7 --grid_u 96 --grid_v 80 "
-                                 "--dataset_inbetweens false --dataset_combos false",
-                                 (d / "actor").string()),
-                     d)
-                  .exit_code,
-              0);
-    const CliResult shot = RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames {} "
-                                              "--seed 5 --contact_frames 0",
-                                              (d / "actor").string(), (d / "shot").string(), kFrames),
-                                  d);
+    ASSERT_EQ(SynthTestActor(d / "actor", d).exit_code, 0);
+    const CliResult shot = SynthTestShot(d / "actor", d / "shot", kFrames, 5, d);
     ASSERT_EQ(shot.exit_code, 0) << shot.err;
     const CliResult run = RunHmc(RunArgs(), d);
     ASSERT_EQ(run.exit_code, 0) << run.err;

@@ -41,17 +41,9 @@ class RunTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new fs::path(FreshTestDir("hmc_run_test", 7));
     const fs::path& d = *dir_;
-    ASSERT_EQ(RunHmc(fmt::format("actor synth --out '{}' --seed 7 --grid_u 96 --grid_v 80 "
-                                 "--dataset_inbetweens false --dataset_combos false",
-                                 (d / "actor").string()),
-                     d)
-                  .exit_code,
-              0);
+    ASSERT_EQ(SynthTestActor(d / "actor", d).exit_code, 0);
     const CliResult shot =
-        RunHmc(fmt::format("synth shot --actor '{}' --out '{}' --frames {} --seed 5 "
-                           "--contact_frames 0 --fps {}",
-                           (d / "actor").string(), (d / "shot").string(), kFrames, kFps),
-               d);
+        SynthTestShot(d / "actor", d / "shot", kFrames, 5, d, fmt::format("--fps {}", kFps));
     ASSERT_EQ(shot.exit_code, 0) << shot.err;
   }
   static void TearDownTestSuite() {
