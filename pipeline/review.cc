@@ -88,7 +88,7 @@ namespace {
 
 enum DotState { kNamed = 0, kFlagged = 1, kInterpolated = 2, kRejected = 3 };
 
-bool Exists(const fs::path& p) {
+bool IsFile(const fs::path& p) {
   std::error_code ec;
   return fs::is_regular_file(p, ec);
 }
@@ -118,7 +118,7 @@ int64_t PathBytes(const fs::path& p) {
 fs::path RecordedShot(const fs::path& work) {
   for (const std::string& stage : PipelineStages()) {
     const fs::path file = work / stage / "summary.json";
-    if (!Exists(file)) continue;
+    if (!IsFile(file)) continue;
     const nlohmann::json s = ReadJson(file);
     const nlohmann::json report = s.value("report", nlohmann::json::object());
     if (report.contains("run_inputs")) return report["run_inputs"].value("shot", std::string());
@@ -131,7 +131,7 @@ fs::path RecordedShot(const fs::path& work) {
 FootageOptions TrackFootage(const fs::path& work) {
   FootageOptions footage;
   const fs::path used = work / "track" / "options_used.yaml";
-  if (!Exists(used)) return footage;
+  if (!IsFile(used)) return footage;
   const YAML::Node n = LoadYamlFile(used);
   if (n["cam0"]) footage.cam0 = n["cam0"].as<std::string>();
   if (n["cam1"]) footage.cam1 = n["cam1"].as<std::string>();
@@ -202,7 +202,7 @@ class ReviewWriter {
 
 void ReviewWriter::ReadTracks() {
   const fs::path file = Stage("track", "tracks_2d.csv");
-  if (!Exists(file)) ThrowInputError(file, 0, "the workspace has no tracks: run hmc run first");
+  if (!IsFile(file)) ThrowInputError(file, 0, "the workspace has no tracks: run hmc run first");
   tracks_ = ReadTracks2dCsv(file);
   for (const Track2d& t : tracks_) {
     MarkerIndex(t.marker);
@@ -211,7 +211,7 @@ void ReviewWriter::ReadTracks() {
   }
   // Markers never found are still names a fix may give.
   const fs::path track_summary = Stage("track", "summary.json");
-  if (Exists(track_summary)) {
+  if (IsFile(track_summary)) {
     const nlohmann::json s = ReadJson(track_summary);
     for (const auto& m : s.value("never_found", nlohmann::json::array())) {
       if (m.is_string()) MarkerIndex(m.get<std::string>());
@@ -226,7 +226,7 @@ void ReviewWriter::ReadTracks() {
 // frame).
 void ReviewWriter::ReadStates() {
   const fs::path plots = Stage("report", "plots.json");
-  if (Exists(plots)) report_data_ = ReadJson(plots);
+  if (IsFile(plots)) report_data_ = ReadJson(plots);
   for (const auto& w : report_data_.value("warnings", nlohmann::json::array())) {
     const std::string stage = w.value("stage", std::string());
     if (stage != "stabilize" && stage != "triangulate") continue;
@@ -240,7 +240,7 @@ void ReviewWriter::ReadStates() {
     }
   }
   const fs::path stabilize = Stage("stabilize", "summary.json");
-  if (Exists(stabilize)) {
+  if (IsFile(stabilize)) {
     const nlohmann::json s = ReadJson(stabilize);
     const nlohmann::json cs =
         s.value("report", nlohmann::json::object()).value("command_summary", nlohmann::json::object());
@@ -252,12 +252,12 @@ void ReviewWriter::ReadStates() {
 
 void ReviewWriter::ReadBundles() {
   const fs::path file = Stage("stabilize", "bundles.csv");
-  if (!Exists(file)) return;
+  if (!IsFile(file)) return;
   // Per (frame, marker): the solve's residual and whether it fell outside
   // its data (diagnostics.json, streamed).
   std::map<std::pair<int, int>, std::pair<double, bool>> solve;
   const fs::path diag = Stage("solve", "diagnostics.json");
-  if (Exists(diag)) {
+  if (IsFile(diag)) {
     ForEachSolveFrame(diag, [&](const nlohmann::json& f) {
       const int frame = f.value("frame", 0);
       for (const auto& b : f["bundles"]) {
@@ -281,7 +281,7 @@ void ReviewWriter::ReadBundles() {
 
 bool ReviewWriter::CopyTrackProxies() {
   const fs::path dir = Stage("track", "proxies");
-  if (!Exists(dir / "proxies.json")) return false;
+  if (!IsFile(dir / "proxies.json")) return false;
   const nlohmann::json p = ReadJson(dir / "proxies.json");
   std::map<std::string, nlohmann::json> by_name;
   for (const auto& c : p.value("cameras", nlohmann::json::array())) by_name[c.value("name", "")] = c;
@@ -366,7 +366,7 @@ void ReviewWriter::WriteProxies() {
 void ReviewWriter::WriteTopology() {
   const fs::path obj = Stage("solve", "neutral.obj");
   const fs::path pc2 = Stage("solve", "mesh.pc2");
-  if (!Exists(obj) || !Exists(pc2)) return;
+  if (!IsFile(obj) || !IsFile(pc2)) return;
   neutral_ = ReadObj(obj);
   MeshSequenceReadOptions read;
   read.topology = &neutral_;
@@ -422,7 +422,7 @@ void ReviewWriter::WriteChunks() {
   size_t row = 0;
   const fs::path pc2 = Stage("solve", "mesh.pc2");
   const fs::path truth_file = shot_ / "truth.pc2";
-  const bool truth = has_mesh_ && Exists(truth_file);
+  const bool truth = has_mesh_ && IsFile(truth_file);
   summary_.has_truth = truth;
   const Eigen::Index V = neutral_.V.rows();
   for (int k = 0; k < num_chunks; ++k) {
@@ -529,7 +529,7 @@ void ReviewWriter::WriteMeta() {
   }
   meta["plots"] = report_data_.value("plots", nlohmann::json::array());
   meta["warnings"] = report_data_.value("warnings", nlohmann::json::array());
-  if (!Exists(Stage("report", "plots.json"))) {
+  if (!IsFile(Stage("report", "plots.json"))) {
     meta["warnings"].push_back({{"stage", "review"},
                                 {"text", "no report/plots.json in the workspace (a run of an earlier "
                                          "hmc, or without its report stage): no plots or warnings"},
@@ -538,7 +538,7 @@ void ReviewWriter::WriteMeta() {
   }
   // The fixes the track stage applied (hmc track --fixes), if any.
   const fs::path fixes = Stage("track", "track_fixes_used.csv");
-  meta["fixes_used"] = Exists(fixes) ? ReadFile(fixes) : "";
+  meta["fixes_used"] = IsFile(fixes) ? ReadFile(fixes) : "";
   WriteScript("data/meta.js", "hmcReview.meta(" + meta.dump() + ");\n");
 }
 
@@ -551,7 +551,7 @@ ReviewSummary ReviewWriter::Write() {
                     "the workspace does not record its shot (a run of an earlier hmc): give --shot");
   }
   const fs::path cal = Stage("calibrate", "calibration.yaml");
-  if (!Exists(cal)) ThrowInputError(cal, 0, "the workspace has no calibration: run hmc run first");
+  if (!IsFile(cal)) ThrowInputError(cal, 0, "the workspace has no calibration: run hmc run first");
   for (const HelmetCamera& c : ReadCalibration(cal).cameras) {
     cameras_.push_back(c.name);
     sizes_.emplace_back(c.camera.width, c.camera.height);
