@@ -76,20 +76,7 @@ SurfacePoint PointOnPolygon(const TriMesh& mesh, const ObjPolygons& polygons,
   for (int k = 0; k < corners; ++k) {
     p += weights[k] * mesh.V.row(corner_vertex(k)).transpose();
   }
-  double best = std::numeric_limits<double>::infinity();
-  for (int j = 0; j < corners - 2; ++j) {
-    const int t = first + j;
-    const Vec3 a = mesh.V.row(mesh.F(t, 0)), b = mesh.V.row(mesh.F(t, 1)),
-               c = mesh.V.row(mesh.F(t, 2));
-    const Vec3 bary = ClosestPointBarycentrics(p, a, b, c);
-    const double distance = (bary[0] * a + bary[1] * b + bary[2] * c - p).norm();
-    if (distance < best) {
-      best = distance;
-      point.face = t;
-      point.bary = bary;
-    }
-  }
-  return point;
+  return ClosestSurfacePoint(mesh, p, first, first + corners - 2);
 }
 
 // A marker's vertex or face index (`what`: "vertex" or "face", `what_plural`

@@ -43,6 +43,13 @@ struct HelmetRig {
   std::vector<HelmetCamera> cameras;
   std::vector<HelmetTag> tags;
   std::string tag_family = "tag36h11";
+
+  // The cameras' names in order ("cam0", "cam1"): how the footage is found.
+  std::vector<std::string> CameraNames() const {
+    std::vector<std::string> names;
+    for (const HelmetCamera& hc : cameras) names.push_back(hc.name);
+    return names;
+  }
 };
 
 // calibration.yaml as OpenCV FileStorage YAML. Read throws InputError naming

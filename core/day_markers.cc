@@ -1,14 +1,11 @@
 #include "core/day_markers.h"
 
-#include <limits>
-
 #include <fmt/format.h>
 
 #include "core/actor_cache.h"
 #include "core/actor_io.h"
 #include "core/error.h"
 #include "core/file_util.h"
-#include "core/triangle.h"
 
 namespace hmc {
 
@@ -95,28 +92,6 @@ std::shared_ptr<const Actor> LoadActorForDay(const fs::path& dir,
   std::shared_ptr<const Actor> actor = LoadActorShared(dir);
   if (markers_file.empty()) return actor;
   return std::make_shared<const Actor>(WithDayMarkers(*actor, markers_file));
-}
-
-SurfacePoint ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p) {
-  SurfacePoint best;
-  double best_d2 = std::numeric_limits<double>::infinity();
-  for (int f = 0; f < mesh.NumFaces(); ++f) {
-    const Vec3 a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)),
-               c = mesh.V.row(mesh.F(f, 2));
-    // Cheap rejection: the triangle's bounding sphere.
-    const Vec3 centre = (a + b + c) / 3;
-    const double r = std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
-    const double dc = (p - centre).norm() - r;
-    if (dc > 0 && dc * dc > best_d2) continue;
-    const Vec3 w = ClosestPointBarycentrics(p, a, b, c);
-    const double d2 = (w[0] * a + w[1] * b + w[2] * c - p).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best.face = f;
-      best.bary = w;
-    }
-  }
-  return best;
 }
 
 }  // namespace hmc

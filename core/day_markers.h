@@ -44,7 +44,4 @@ Actor WithDayMarkers(const Actor& actor, const std::filesystem::path& markers_fi
 std::shared_ptr<const Actor> LoadActorForDay(const std::filesystem::path& dir,
                                              const std::string& markers_file);
 
-// The closest point of `mesh`'s surface to p (every triangle tested).
-SurfacePoint ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p);
-
 }  // namespace hmc

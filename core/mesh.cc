@@ -1,8 +1,12 @@
 #include "core/mesh.h"
 
+#include <algorithm>
+#include <limits>
+
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/triangle.h"
 
 namespace hmc {
 
@@ -22,6 +26,30 @@ void CheckSiteOnMesh(const TriMesh& mesh, const SurfacePoint& site, size_t k) {
                                  "neutral mesh (F = {}) does not have",
                                  k, site.face, mesh.NumFaces()));
   }
+}
+
+SurfacePoint ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p, int first_face,
+                                 int end_face) {
+  if (end_face < 0) end_face = mesh.NumFaces();
+  SurfacePoint best;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (int f = first_face; f < end_face; ++f) {
+    const Vec3 a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)),
+               c = mesh.V.row(mesh.F(f, 2));
+    // Cheap rejection: the triangle's bounding sphere.
+    const Vec3 centre = (a + b + c) / 3;
+    const double r = std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
+    const double dc = (p - centre).norm() - r;
+    if (dc > 0 && dc * dc > best_d2) continue;
+    const Vec3 w = ClosestPointBarycentrics(p, a, b, c);
+    const double d2 = (w[0] * a + w[1] * b + w[2] * c - p).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best.face = f;
+      best.bary = w;
+    }
+  }
+  return best;
 }
 
 SurfacePoint SurfacePointAtVertex(const MatX3i& F, int v) {

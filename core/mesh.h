@@ -38,6 +38,11 @@ Vec3 EvaluateSurfacePoint(const SurfacePoint& point, const MatX3i& F,
 // have (the sites were made for another mesh).
 void CheckSiteOnMesh(const TriMesh& mesh, const SurfacePoint& site, size_t k);
 
+// The closest point to p on triangles [first_face, end_face) of `mesh`
+// (end_face < 0: to the last), each tested; the first of equally close.
+SurfacePoint ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p, int first_face = 0,
+                                 int end_face = -1);
+
 // A surface point exactly at vertex `v` (one-hot barycentrics on one of the
 // triangles using it). Requires v to be used by a triangle.
 SurfacePoint SurfacePointAtVertex(const MatX3i& F, int v);

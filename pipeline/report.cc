@@ -584,10 +584,7 @@ void ReportWriter::ContactSheet(const Actor& actor) {
   if (chosen.empty()) return;
   std::vector<std::string> names = {"cam0", "cam1"};
   const fs::path cal = Stage("calibrate", "calibration.yaml");
-  if (Exists(cal)) {
-    names.clear();
-    for (const HelmetCamera& c : ReadCalibration(cal).cameras) names.push_back(c.name);
-  }
+  if (Exists(cal)) names = ReadCalibration(cal).CameraNames();
   FootageOptions footage;
   footage.frames = fmt::format("{}:{}", *chosen.begin(), *chosen.rbegin());
   std::vector<cv::Mat> rows;

@@ -246,10 +246,8 @@ std::vector<std::string> Pipeline::FootageFlags() const {
 
 void Pipeline::AddFootageInputs(StageKey* key) const {
   // The footage as the reader finds it; names from the calibration.
-  const HelmetRig rig = ReadCalibration(input_.calibration);
-  std::vector<std::string> names;
-  for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  const FootageReader reader(input_.shot, names, options_.footage);
+  const FootageReader reader(input_.shot, ReadCalibration(input_.calibration).CameraNames(),
+                             options_.footage);
   for (int c = 0; c < reader.num_cameras(); ++c) {
     key->AddInput("footage." + reader.camera_name(c), reader.source(c));
   }
@@ -263,10 +261,8 @@ void Pipeline::AddFootageInputs(StageKey* key) const {
 
 Pipeline::FootageTiming Pipeline::FootageTimingFlags() const {
   FootageTiming timing;
-  const HelmetRig rig = ReadCalibration(input_.calibration);
-  std::vector<std::string> names;
-  for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
-  const FootageReader reader(input_.shot, names, options_.footage);
+  const FootageReader reader(input_.shot, ReadCalibration(input_.calibration).CameraNames(),
+                             options_.footage);
   const double fps = options_.fps > 0 ? options_.fps : reader.fps();
   // An image sequence: the commands' default rate.
   if (fps > 0) {

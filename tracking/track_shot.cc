@@ -180,12 +180,9 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
                     actor.markers.size());
   }
   const MarkerLayout layout = MakeMarkerLayout(actor, options.tracker.neighbours);
-  std::vector<std::string> names;
+  const std::vector<std::string> names = rig.CameraNames();
   std::vector<cv::Size> sizes;
-  for (const HelmetCamera& hc : rig.cameras) {
-    names.push_back(hc.name);
-    sizes.emplace_back(hc.camera.width, hc.camera.height);
-  }
+  for (const HelmetCamera& hc : rig.cameras) sizes.emplace_back(hc.camera.width, hc.camera.height);
   // The fixes, per frame and camera, resolved to the layout's markers.
   std::vector<TrackFix> fixes;
   std::map<int, std::vector<std::vector<TrackerFix>>> fixes_at;

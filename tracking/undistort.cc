@@ -83,12 +83,9 @@ UndistortSummary RunUndistort(const UndistortInput& input, const UndistortOption
   if (!options.Check()) throw InputError("invalid undistort options (see the message above)");
   const auto start = std::chrono::steady_clock::now();
   const HelmetRig rig = ReadCalibration(input.calibration);
-  std::vector<std::string> names;
+  const std::vector<std::string> names = rig.CameraNames();
   std::vector<cv::Size> sizes;
-  for (const HelmetCamera& hc : rig.cameras) {
-    names.push_back(hc.name);
-    sizes.emplace_back(hc.camera.width, hc.camera.height);
-  }
+  for (const HelmetCamera& hc : rig.cameras) sizes.emplace_back(hc.camera.width, hc.camera.height);
   std::vector<int> selected;
   for (int c = 0; c < static_cast<int>(names.size()); ++c) {
     if (options.camera == "both" || options.camera == names[c]) selected.push_back(c);

@@ -485,9 +485,7 @@ std::vector<TagObservation> DetectOnFrames(const std::filesystem::path& shot,
                                            const std::vector<int>* wanted,
                                            const CalibrateOptions& options, int* frames_read) {
   footage.frames = range;
-  std::vector<std::string> names;
-  for (const HelmetCamera& hc : rig.cameras) names.push_back(hc.name);
-  FootageReader reader(shot, names, footage);
+  FootageReader reader(shot, rig.CameraNames(), footage);
   const int nc = static_cast<int>(rig.cameras.size());
   std::vector<std::unique_ptr<TagDetector>> detectors;
   for (int c = 0; c < nc; ++c) {
@@ -529,8 +527,7 @@ CalibrateOutput RunCalibrate(const std::filesystem::path& shot,
                     "tagless helmet's stereo calibration is used as it is: hmc run does so)");
   }
   ThreadLimit limit(options.threads);
-  std::vector<std::string> names;
-  for (const HelmetCamera& hc : nominal.cameras) names.push_back(hc.name);
+  const std::vector<std::string> names = nominal.CameraNames();
   int first = 0, last = 0;
   {
     FootageReader reader(shot, names, options.footage);
