@@ -218,8 +218,8 @@ std::string JawRigEstimate::Describe() const {
 }
 
 std::optional<JawRigEstimate> EstimateJawRig(const Actor& actor) {
-  using namespace jaw_estimate_detail;
-  const int open = FindJawShape(actor, kOpenWords);
+  namespace jd = jaw_estimate_detail;
+  const int open = jd::FindJawShape(actor, jd::kOpenWords);
   if (open < 0) return std::nullopt;
   const MatX3d& V = actor.neutral.V;
   const MatX3d& d_open = actor.shapes[open].displacement;
@@ -229,12 +229,12 @@ std::optional<JawRigEstimate> EstimateJawRig(const Actor& actor) {
   // Hinge, pivot and angle on the vertices moved by more than a tenth of
   // the largest move (the skin that barely follows says little).
   std::vector<Vec3> x, d;
-  for (int v : Moving(d_open, 0.1)) {
+  for (int v : jd::Moving(d_open, 0.1)) {
     x.push_back(V.row(v).transpose());
     d.push_back(d_open.row(v).transpose());
   }
   if (x.size() < 6) return std::nullopt;
-  const RotationFit fit = FitRotation(x, d, StartOpenFit(x, d), true, nullptr);
+  const jd::RotationFit fit = jd::FitRotation(x, d, jd::StartOpenFit(x, d), true, nullptr);
   const double angle = fit.omega.norm();
   if (!(angle > 1e-6) || !fit.pivot.allFinite()) return std::nullopt;
   out.open_rms_mm = fit.rms_mm;
@@ -242,38 +242,38 @@ std::optional<JawRigEstimate> EstimateJawRig(const Actor& actor) {
   out.rig.pivot = fit.pivot;
 
   // Weights of every vertex from the open shape.
-  const Mat3 m = RotationOf(fit.omega) - Mat3::Identity();
+  const Mat3 m = jd::RotationOf(fit.omega) - Mat3::Identity();
   out.rig.weights = Eigen::VectorXd::Zero(V.rows());
   const double top = d_open.rowwise().norm().maxCoeff();
   for (Eigen::Index v = 0; v < V.rows(); ++v) {
     const Vec3 dv = d_open.row(v).transpose();
     if (dv.norm() <= 1e-3 * top) continue;
-    out.rig.weights[v] = BlendWeight(dv, m * (Vec3(V.row(v).transpose()) - fit.pivot));
+    out.rig.weights[v] = jd::BlendWeight(dv, m * (Vec3(V.row(v).transpose()) - fit.pivot));
   }
 
   // The vertical axis: the sideways shape's rotation, or head space's up.
   Vec3 vertical = Vec3::UnitY();
-  int lateral = FindJawShape(actor, kLeftWords);
+  int lateral = jd::FindJawShape(actor, jd::kLeftWords);
   double lateral_sign = 1.0;  // + swings to the actor's left
   if (lateral < 0) {
-    lateral = FindJawShape(actor, kRightWords);
+    lateral = jd::FindJawShape(actor, jd::kRightWords);
     lateral_sign = -1.0;
   }
   if (lateral >= 0) {
     const MatX3d& d_lat = actor.shapes[lateral].displacement;
     std::vector<Vec3> xl, dl;
     std::vector<double> wl;
-    for (int v : Moving(d_lat, 0.1)) {
+    for (int v : jd::Moving(d_lat, 0.1)) {
       if (out.rig.weights[v] <= 0.5) continue;
       xl.push_back(V.row(v).transpose());
       dl.push_back(d_lat.row(v).transpose());
       wl.push_back(out.rig.weights[v]);
     }
     if (xl.size() >= 6) {
-      RotationFit start;
+      jd::RotationFit start;
       start.pivot = out.rig.pivot;
       start.omega = Vec3(0, 0.01 * lateral_sign, 0);
-      const RotationFit lat = FitRotation(xl, dl, start, false, &wl);
+      const jd::RotationFit lat = jd::FitRotation(xl, dl, start, false, &wl);
       if (lat.omega.norm() > 1e-6) {
         vertical = lateral_sign * lat.omega.normalized();
         out.lateral_shape = actor.shapes[lateral].name;
@@ -287,7 +287,7 @@ std::optional<JawRigEstimate> EstimateJawRig(const Actor& actor) {
   out.rig.axes.col(0) = hinge;
   out.rig.axes.col(1) = vertical;
   out.rig.axes.col(2) = hinge.cross(vertical);
-  const int forward = FindJawShape(actor, kForwardWords);
+  const int forward = jd::FindJawShape(actor, jd::kForwardWords);
   if (forward >= 0) out.forward_shape = actor.shapes[forward].name;
 
   // Every shape's jaw pose (open_deg, lateral_deg, protrude_mm) over the
@@ -315,7 +315,7 @@ std::optional<JawRigEstimate> EstimateJawRig(const Actor& actor) {
     };
     Eigen::VectorXd p = Eigen::VectorXd::Zero(3);
     if (static_cast<int>(n) == open) p[0] = angle * 180 / M_PI;
-    p = Minimise(residuals, p);
+    p = jd::Minimise(residuals, p);
     Eigen::VectorXd r;
     residuals(p, &r);
     if (r.squaredNorm() <= 0.5 * energy) {
