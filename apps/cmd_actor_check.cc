@@ -3,7 +3,9 @@
 // (InputError -> exit code 2, the message names the file and line); a valid
 // one that looks like an export mistake (head far from the origin or not +y
 // up, units off by 10 or 1000, unknown marker tags) is summarised with
-// warnings (core/actor_check.h; exit code 0).
+// warnings (core/actor_check.h; exit code 0). An actor without a jaw rig
+// gets the one estimated from its dataset's jaw shapes reported, and
+// `--write_jaw_rig OUT` writes the package with it (core/jaw_estimate.h).
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -48,7 +50,7 @@ ActorSummary Summarise(const Actor& actor) {
   return summary;
 }
 
-nlohmann::json Vector(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+nlohmann::json JsonVector(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json ToJson(const Actor& actor, const ActorSummary& summary,
                       const std::vector<ActorWarning>& warnings,
@@ -83,10 +85,10 @@ nlohmann::json ToJson(const Actor& actor, const ActorSummary& summary,
           {"from_shapes", {{"open", estimate->open_shape},
                            {"lateral", estimate->lateral_shape},
                            {"forward", estimate->forward_shape}}},
-          {"pivot_mm", Vector(rig.pivot)},
-          {"hinge", Vector(rig.axes.col(0))},
-          {"vertical", Vector(rig.axes.col(1))},
-          {"forward", Vector(rig.axes.col(2))},
+          {"pivot_mm", JsonVector(rig.pivot)},
+          {"hinge", JsonVector(rig.axes.col(0))},
+          {"vertical", JsonVector(rig.axes.col(1))},
+          {"forward", JsonVector(rig.axes.col(2))},
           {"weighted_vertices", (rig.weights.array() > 0).count()},
           {"shapes_with_jaw_pose", estimate->shapes_with_pose},
           {"open_fit_rms_mm", estimate->open_rms_mm}};
