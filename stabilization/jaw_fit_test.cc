@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "core/jaw_estimate.h"
 #include "stabilization/accuracy.h"
 #include "stabilization/jaw_cost.h"
 #include "stabilization/shot_test_util.h"
@@ -188,6 +189,84 @@ TEST(JawFitTest, AnActorWithoutAJawRigGetsAClearMessage) {
     EXPECT_NE(std::string(e.what()).find("no jaw rig"), std::string::npos) << e.what();
   }
 }
+
+// An actor without a jaw rig (docs/formats.md, "An estimated jaw rig"):
+// the generator actor's rig and its shapes' jaw poses removed, the rig
+// estimated from the dataset's jaw shapes, against the true rig: the
+// hinge's direction, the pivot's distance from the true hinge line, the
+// shapes' jaw poses, and the jaw stage on the true head-space bundles.
+class JawRigEstimation : public ::testing::TestWithParam<std::tuple<int, bool>> {};
+
+TEST_P(JawRigEstimation, RecoversTheRigAndTheJawStageWithIt) {
+  const auto [seed, full_dataset] = GetParam();
+  SynthActorOptions options;
+  options.seed = seed;
+  options.grid_u = 24;
+  options.grid_v = 20;
+  options.dataset_inbetweens = full_dataset;
+  options.dataset_combos = full_dataset;
+  const SmallActor a = MakeTestActor(options);
+  ASSERT_TRUE(a.actor.jaw_rig.has_value());
+  const JawRig& truth = *a.actor.jaw_rig;
+  Actor stripped = a.actor;
+  stripped.jaw_rig.reset();
+  for (Shape& shape : stripped.shapes) shape.jaw = JawPose();
+  const std::optional<JawRigEstimate> estimate = EstimateJawRig(stripped);
+  ASSERT_TRUE(estimate.has_value());
+  const JawRig& rig = estimate->rig;
+  const double hinge_deg =
+      std::acos(std::min(1.0, rig.axes.col(0).dot(truth.axes.col(0)))) * 180 / M_PI;
+  const double vertical_deg =
+      std::acos(std::min(1.0, rig.axes.col(1).dot(truth.axes.col(1)))) * 180 / M_PI;
+  const Vec3 offset = truth.pivot - rig.pivot;
+  const double pivot_mm = (offset - offset.dot(rig.axes.col(0)) * rig.axes.col(0)).norm();
+  double pose_error = 0;
+  for (size_t n = 0; n < stripped.shapes.size(); ++n) {
+    const std::array<double, 3> e = estimate->shape_poses[n].ToArray();
+    const std::array<double, 3> t = a.actor.shapes[n].jaw.ToArray();
+    for (int i = 0; i < 3; ++i) pose_error = std::max(pose_error, std::abs(e[i] - t[i]));
+  }
+  Actor estimated = stripped;
+  ApplyJawRigEstimate(*estimate, &estimated);
+  const MarkerModel model = ComputeMarkerModel(estimated);
+  PerformanceOptions perf;
+  perf.seed = seed + 20;
+  perf.frames = 40;
+  perf.jaw_activity = 0.6;
+  const ShotTruth shot = MakeShotTruth(a, perf, 0.0);
+  const JawError with_estimate =
+      CompareJaw(RunJaw(estimated, model, shot.head, JawOptions()).JawFrames(), shot.jaw);
+  const JawError with_truth =
+      CompareJaw(RunJaw(a.actor, a.markers, shot.head, JawOptions()).JawFrames(), shot.jaw);
+  RecordProperty("estimate", estimate->Describe());
+  RecordProperty("jaw_stage", with_estimate.BriefReport());
+  EXPECT_LT(hinge_deg, 0.5);
+  EXPECT_LT(vertical_deg, 0.5);
+  EXPECT_LT(pivot_mm, 0.5);
+  if (!full_dataset) {
+    // The units alone: their jaw poses (degrees and millimetres) and the
+    // jaw stage's noise-free targets (docs/stabilization.md: 0.2 deg and
+    // 0.1 mm), as with the true rig.
+    EXPECT_LT(pose_error, 0.2);
+    EXPECT_LT(with_estimate.rms[0], 0.2) << with_estimate.BriefReport();
+    EXPECT_LT(with_estimate.rms[1], 0.2) << with_estimate.BriefReport();
+    EXPECT_LT(with_estimate.rms[2], 0.1) << with_estimate.BriefReport();
+  } else {
+    // With combinations, whose other units move the chin's skin too, their
+    // fitted jaw poses are up to ~0.5 off and the jaw stage's protrusion
+    // misses the noise-free 0.1 mm on some seeds (docs/formats.md, "An
+    // estimated jaw rig"): held to the stage's 0.2 mm-noise targets.
+    EXPECT_LT(pose_error, 1.0);
+    EXPECT_LT(with_estimate.rms[0], 0.5) << with_estimate.BriefReport();
+    EXPECT_LT(with_estimate.rms[1], 0.5) << with_estimate.BriefReport();
+    EXPECT_LT(with_estimate.rms[2], 0.3) << with_estimate.BriefReport();
+  }
+  EXPECT_LT(with_truth.rms[2], 0.1) << with_truth.BriefReport();
+}
+
+INSTANTIATE_TEST_SUITE_P(SeedsAndDatasets, JawRigEstimation,
+                         ::testing::Combine(::testing::Values(1, 2, 3),
+                                            ::testing::Values(false, true)));
 
 }  // namespace
 }  // namespace hmc

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <cmath>
 #include <functional>
 #include <sstream>
 #include <string>
@@ -238,6 +239,68 @@ TEST_F(ActorCheck, WarnsOnUnknownTagsNamingTheMarkerAndTheNearestKnownTag) {
   EXPECT_TRUE(Warnings(Edited(Same, {lips, {"actor.yaml", "tags: [mouth, jaw]",
                                             "tags: [mouth, jaw, lips]"}}))
                   .empty());
+}
+
+// An actor without a jaw rig whose dataset has jaw shapes (the synthetic
+// linear rig: its jaw units are built with the generator's rig, which the
+// generator actor of the same seed carries): `hmc actor check` reports the
+// rig estimated from them, `--write_jaw_rig` writes a package that loads
+// with it, and an actor that has a rig is refused.
+TEST_F(ActorCheck, EstimatesAJawRigFromTheDatasetsJawShapes) {
+  for (int seed : {3, 4}) {
+    const std::string common = fmt::format(
+        "-q actor synth --grid_u 24 --grid_v 20 --dataset_inbetweens false "
+        "--dataset_combos false --seed {}",
+        seed);
+    const fs::path linear = scratch_ / fmt::format("linear{}", seed);
+    const fs::path generator = scratch_ / fmt::format("generator{}", seed);
+    ASSERT_EQ(RunHmc(fmt::format("{} --rig linear --out '{}'", common, linear.string()), scratch_)
+                  .exit_code, 0);
+    ASSERT_EQ(RunHmc(fmt::format("{} --rig generator --out '{}'", common, generator.string()),
+                     scratch_)
+                  .exit_code, 0);
+    const Actor truth_actor = LoadActor(generator);
+    ASSERT_TRUE(truth_actor.jaw_rig.has_value());
+    const JawRig& truth = *truth_actor.jaw_rig;
+
+    const CliResult check =
+        RunHmc(fmt::format("-q actor check '{}' --json", linear.string()), scratch_);
+    ASSERT_EQ(check.exit_code, 0) << check.err;
+    const nlohmann::json json = nlohmann::json::parse(check.out);
+    EXPECT_EQ(json.at("has_jaw_rig"), false);
+    const nlohmann::json& estimate = json.at("jaw_rig_estimate");
+    ASSERT_TRUE(estimate.is_object()) << json.dump();
+    EXPECT_NE(estimate.at("from_shapes").at("open").get<std::string>().find("jaw"),
+              std::string::npos);
+    Vec3 hinge, pivot;
+    for (int i = 0; i < 3; ++i) {
+      hinge[i] = estimate.at("hinge").at(i).get<double>();
+      pivot[i] = estimate.at("pivot_mm").at(i).get<double>();
+    }
+    EXPECT_GT(hinge.dot(truth.axes.col(0)), std::cos(0.5 * M_PI / 180)) << hinge.transpose();
+    const Vec3 offset = truth.pivot - pivot;
+    EXPECT_LT((offset - offset.dot(hinge) * hinge).norm(), 0.5) << pivot.transpose();
+
+    const fs::path written = scratch_ / fmt::format("with_jaw{}", seed);
+    const CliResult write = RunHmc(
+        fmt::format("-q actor check '{}' --write_jaw_rig '{}'", linear.string(), written.string()),
+        scratch_);
+    ASSERT_EQ(write.exit_code, 0) << write.err;
+    const Actor with_jaw = LoadActor(written);
+    ASSERT_TRUE(with_jaw.jaw_rig.has_value());
+    EXPECT_LT((with_jaw.jaw_rig->pivot - pivot).norm(), 1e-6);
+    int posed = 0;
+    for (const Shape& shape : with_jaw.shapes) posed += !shape.jaw.IsZero();
+    EXPECT_EQ(posed, estimate.at("shapes_with_jaw_pose").get<int>());
+    EXPECT_GT(posed, 0);
+
+    const CliResult refused = RunHmc(
+        fmt::format("-q actor check '{}' --write_jaw_rig '{}'", generator.string(),
+                    (scratch_ / "refused").string()),
+        scratch_);
+    EXPECT_NE(refused.exit_code, 0);
+    EXPECT_NE(refused.err.find("has a jaw rig already"), std::string::npos) << refused.err;
+  }
 }
 
 }  // namespace
