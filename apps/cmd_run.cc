@@ -50,7 +50,7 @@ HMC_COMMAND(Run, "", "run",
   for (const char* flag : {"--cam0", "--cam1", "--offset1", "--frames", "--reference_frame", "--fps"}) {
     app->get_option(flag)->group("Footage, set once for every stage (also run: in --config)");
   }
-  for (const char* flag : {"--calibrate", "--export", "--from", "--to"}) {
+  for (const char* flag : {"--calibrate", "--export", "--diagnostics", "--from", "--to"}) {
     app->get_option(flag)->group("The run (also run: in --config)");
   }
   app->footer(

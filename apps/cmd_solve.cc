@@ -37,10 +37,13 @@
 // the diagnostics, dropped from its frame. Unknown marker names are
 // ignored with one warning (docs/reliability.md).
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -51,6 +54,7 @@
 #include "blending/ray_constraints.h"
 #include "blending/solve_index_cache.h"
 #include "blending/solve_method.h"
+#include "blending/temporal_coherence.h"
 #include "blending/unit_curves.h"
 #include "core/actor.h"
 #include "core/actor_cache.h"
@@ -60,6 +64,7 @@
 #include "core/logging.h"
 #include "core/mesh_sequence.h"
 #include "core/obj_io.h"
+#include "core/parallel.h"
 #include "triangulation/triangulate.h"
 
 namespace hmc {
@@ -90,6 +95,7 @@ struct SolveCommand {
   std::string jaw_file;
   std::string out;
   std::string diagnostics_file;
+  std::string diagnostics_detail = "summary";  // summary | full (docs/formats.md, "Solve diagnostics")
   std::string topology_file;
   std::string rays_file;
   std::string calibration_file;
@@ -112,32 +118,56 @@ const char* StatusName(BundleSolve::Status status) {
   return "unused";
 }
 
-// One frame's record of the diagnostics file.
+// A residual as the diagnostics give it: to 0.1 um, which every reader
+// (the report's plots, the review page) is far coarser than.
+double DiagnosticMm(double mm) { return std::round(mm * 1e4) / 1e4; }
+
+// One frame's record of the diagnostics file: its counts and residuals,
+// and per observed bundle its status and residual; with `full`, every
+// bundle with the shapes and weights of its answer and lgi's query.
 nlohmann::json FrameDiagnostics(const Actor& actor, const FrameSolve& f,
-                                const std::vector<std::string>& outliers) {
-    nlohmann::json bundles = nlohmann::json::array();
-    for (size_t k = 0; k < f.bundles.size() && f.ok; ++k) {
-      const BundleSolve& b = f.bundles[k];
-      nlohmann::json shapes = nlohmann::json::array();
-      nlohmann::json weights = nlohmann::json::array();
-      for (const auto& [n, w] : f.Weights(static_cast<int>(k))) {
-        shapes.push_back(actor.shapes[n].name);
-        weights.push_back(w);
-      }
-      nlohmann::json entry = {{"marker", actor.markers[k].name},
-                              {"status", StatusName(b.status)},
-                              {"filled_missing",
-                               b.status == BundleSolve::Status::kFilled},
-                              {"shapes", shapes},
-                              {"weights", weights}};
-      if (b.status != BundleSolve::Status::kFilled) {
-        entry["projected_mm"] = b.distance;
-        entry["candidates"] = b.num_candidates;
-        entry["neighbour_cost_mm2"] = b.cost;
-        entry["residual_mm"] = b.residual;
-      }
-      bundles.push_back(entry);
+                                const std::vector<std::string>& outliers, bool full) {
+  nlohmann::json bundles = nlohmann::json::array();
+  int counts[3] = {0, 0, 0};  // inside, projected, filled
+  double residual_sum = 0.0, residual_max = 0.0;
+  for (size_t k = 0; k < f.bundles.size() && f.ok; ++k) {
+    const BundleSolve& b = f.bundles[k];
+    if (b.status == BundleSolve::Status::kUnused) continue;
+    ++counts[b.status == BundleSolve::Status::kInside      ? 0
+             : b.status == BundleSolve::Status::kProjected ? 1
+                                                           : 2];
+    if (b.Measured()) {
+      residual_sum += b.residual;
+      residual_max = std::max(residual_max, b.residual);
     }
+    if (!full) {
+      if (b.Measured()) {
+        bundles.push_back({{"marker", actor.markers[k].name},
+                           {"status", StatusName(b.status)},
+                           {"residual_mm", DiagnosticMm(b.residual)}});
+      }
+      continue;
+    }
+    nlohmann::json shapes = nlohmann::json::array();
+    nlohmann::json weights = nlohmann::json::array();
+    for (const auto& [n, w] : f.Weights(static_cast<int>(k))) {
+      shapes.push_back(actor.shapes[n].name);
+      weights.push_back(w);
+    }
+    nlohmann::json entry = {{"marker", actor.markers[k].name},
+                            {"status", StatusName(b.status)},
+                            {"filled_missing", b.status == BundleSolve::Status::kFilled},
+                            {"shapes", shapes},
+                            {"weights", weights}};
+    if (b.status != BundleSolve::Status::kFilled) {
+      entry["projected_mm"] = b.distance;
+      entry["candidates"] = b.num_candidates;
+      entry["neighbour_cost_mm2"] = b.cost;
+      entry["residual_mm"] = b.residual;
+    }
+    bundles.push_back(entry);
+  }
+  const int measured = counts[0] + counts[1];
   return {{"frame", f.frame},
           {"ok", f.ok},
           {"reason", f.reason},
@@ -147,6 +177,11 @@ nlohmann::json FrameDiagnostics(const Actor& actor, const FrameSolve& f,
             {"protrude_mm", f.jaw.protrude_mm}}},
           {"unknown_markers", f.unknown_markers},
           {"outlier_markers", outliers},
+          {"inside", counts[0]},
+          {"projected", counts[1]},
+          {"filled", counts[2]},
+          {"residual_mean_mm", DiagnosticMm(measured ? residual_sum / measured : 0.0)},
+          {"residual_max_mm", DiagnosticMm(residual_max)},
           {"bundles", bundles}};
 }
 
@@ -226,7 +261,7 @@ struct UnitDiagnostics {
 void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
                       const std::string& method, const LgiModel* model,
                       const SolveResult& result, const DenseSequence& input,
-                      const RayDiagnostics& rays, const UnitDiagnostics& units) {
+                      const RayDiagnostics& rays, const UnitDiagnostics& units, bool full) {
   const SolveSummary& s = result.summary;
   nlohmann::json index = nullptr;
   if (model) {
@@ -238,6 +273,7 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
   if (!result.report.brief.empty()) report["brief"] = result.report.brief;
   const nlohmann::json head = {{"actor", actor.name},
                                 {"method", method},
+                                {"detail", full ? "full" : "summary"},
                                 {"index", index},
                                 {"report", report},
                                 {"summary",
@@ -258,13 +294,31 @@ void WriteDiagnostics(const std::filesystem::path& path, const Actor& actor,
     }
     out << " \"frames\": [";
     for (size_t i = 0; i < result.frames.size(); ++i) {
-      nlohmann::json frame = FrameDiagnostics(actor, result.frames[i], input.outliers[i]);
+      nlohmann::json frame = FrameDiagnostics(actor, result.frames[i], input.outliers[i], full);
       if (!rays.frames.empty()) frame["rays"] = rays.frames[i];
       if (!units.frame_mean_mm.empty()) frame["unit_fit_mean_mm"] = units.frame_mean_mm[i];
       out << (i ? ",\n  " : "\n  ") << frame.dump();
     }
     out << "\n ]\n}\n";
   });
+}
+
+// The robust solve's temporal steps run only on a take; when robust.take
+// auto judged the frames not one, a warning says so and how to decide it
+// (issue 46, item 4: a continuous clip judged "not a take" was said only
+// in the info log).
+void WarnIfNotATake(const SolveCommandOptions& options, const MethodReport& report) {
+  if (options.methods.robust.take != "auto") return;
+  double take = -1, correlation = 0;
+  for (const auto& [name, value] : report.values) {
+    if (name == "take") take = value;
+    if (name == "take_correlation") correlation = value;
+  }
+  if (take != 0) return;  // a take, or not a robust solve
+  spdlog::warn("solve: the frames were judged not a take (the markers' lag-1 correlation {:.2f} < "
+               "{}): the temporal steps (3b, 3c, step 5's averaging) were off; give --robust.take "
+               "yes for a continuous recording, no for unrelated frames (docs/method.md, \"Takes\")",
+               correlation, kTakeCorrelation);
 }
 
 int Run(SolveCommand& cmd, OptionBinding& binding) {
@@ -332,40 +386,105 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
   solvers.Prepare(cmd.options.method);
   DropBundlesBeyondReach(solvers.data(), cmd.options.input.outlier_margin_mm,
                          cmd.bundles_file, &input);
-  SolveResult result =
-      solvers.Solve(cmd.options.method, input.frames, input.jaw,
-                    input.frame_errors);
-  if (result.summary.bad_frames >= static_cast<int>(result.frames.size())) {
-    ThrowInputError(cmd.bundles_file, 0,
-                    "no frame could be solved (frame {}: {}); nothing written",
-                    result.frames.front().frame, result.frames.front().reason);
-  }
+  const int num_frames = static_cast<int>(input.frames.size());
+  auto pose = [&](int f) { return input.jaw.empty() ? JawPose() : input.jaw[f]; };
 
-  RayDiagnostics ray_diagnostics;
+  // What is done to each mesh after the solve, frame by frame as the solve
+  // hands them over (issue 46: a long take's meshes are never all held):
+  // the rays' constraints, the units' fit, the write.
+  std::vector<RayConstraint> rays;
+  std::vector<std::vector<char>> observed;
+  std::vector<Mat3> site_motion;
   if (!cmd.rays_file.empty()) {
-    const std::vector<RayConstraint> rays = HeadSpaceRays(cmd, actor, input);
+    rays = HeadSpaceRays(cmd, actor, input);
     // The sewing's weights: the lgi model's (built or loaded for methods
     // that do not use it).
     if (!solvers.lgi_model()) solvers.Prepare("lgi");
-    const LgiModel& model = *solvers.lgi_model();
-    const size_t num_frames = result.meshes.size();
-    std::vector<std::vector<char>> observed(num_frames,
-                                            std::vector<char>(actor.markers.size(), 0));
-    std::vector<char> frame_ok(num_frames, 0);
-    for (size_t f = 0; f < num_frames; ++f) {
-      frame_ok[f] = result.frames[f].ok;
+    observed.assign(num_frames, std::vector<char>(actor.markers.size(), 0));
+    for (int f = 0; f < num_frames; ++f) {
       for (size_t k = 0; k < actor.markers.size(); ++k) {
         observed[f][k] = input.frames[f].bundles.count(actor.markers[k].name) > 0;
       }
     }
-    const std::vector<RayResidual> residuals =
-        ApplyRayConstraints(rays, model.data.sites, actor.neutral.F, model.nn, observed,
-                            frame_ok, cmd.options.rays, &result.meshes,
-                            cmd.options.rays.depth == "dataset"
-                                ? SiteMotionCovariances(ShapeDisplacements(actor), model.data.sites,
-                                                        actor.neutral.F)
-                                : std::vector<Mat3>());
-    const RayConstraintSummary summary = SummarizeRays(residuals);
+    if (cmd.options.rays.depth == "dataset") {
+      site_motion = SiteMotionCovariances(ShapeDisplacements(actor), solvers.lgi_model()->data.sites,
+                                          actor.neutral.F);
+    }
+  }
+  std::vector<RayResidual> ray_residuals(rays.size());
+  std::vector<char> frame_ok(num_frames, 0);
+  const bool fit_units =
+      !cmd.weights_file.empty() || !cmd.curves_file.empty() || !cmd.unit_rig_file.empty();
+  std::optional<UnitRig> unit_rig;
+  std::optional<UnitFitter> unit_fitter;
+  UnitFit fit;
+  if (fit_units) {
+    unit_rig.emplace(UnitRigFromActor(actor));
+    unit_fitter.emplace(*unit_rig, actor);
+    fit.weights.assign(num_frames, Eigen::VectorXd());
+    fit.mean_mm.assign(num_frames, 0.0);
+  }
+
+  SolveResult result;
+  // Solves the sequence, handing each final mesh to emit in frame order, a
+  // batch of frames at a time (the units' fit runs over a batch in
+  // parallel).
+  auto solve = [&](const EmitMesh& emit) {
+    constexpr size_t kBatch = 16;
+    std::vector<std::pair<int, MatX3d>> batch;
+    std::vector<MatX3d*> in_batch(num_frames, nullptr);
+    auto flush = [&] {
+      for (auto& [f, mesh] : batch) in_batch[f] = &mesh;
+      if (!rays.empty()) {
+        const std::vector<RayResidual> r = ApplyRayConstraints(
+            rays, solvers.lgi_model()->data.sites, actor.neutral.F, solvers.lgi_model()->nn,
+            observed, frame_ok, cmd.options.rays, num_frames,
+            [&](int f) { return in_batch[f]; }, site_motion);
+        for (size_t i = 0; i < rays.size(); ++i) {
+          if (in_batch[rays[i].frame_index]) ray_residuals[i] = r[i];
+        }
+      }
+      if (unit_fitter) {
+        ParallelFor(0, static_cast<int64_t>(batch.size()), [&](int64_t i) {
+          const int f = batch[i].first;
+          fit.mean_mm[f] = unit_fitter->Fit(batch[i].second, pose(f), &fit.weights[f]);
+        });
+      }
+      for (auto& [f, mesh] : batch) {
+        emit(mesh);
+        in_batch[f] = nullptr;
+      }
+      batch.clear();
+    };
+    const MeshSink sink = [&](int f, const FrameSolve& frame, const MatX3d& mesh) {
+      frame_ok[f] = frame.ok;
+      batch.emplace_back(f, mesh);
+      if (batch.size() == kBatch) flush();
+    };
+    result = solvers.Solve(cmd.options.method, input.frames, input.jaw, input.frame_errors, &sink);
+    flush();
+    // Thrown before the output is renamed into place: nothing written.
+    if (result.summary.bad_frames >= static_cast<int>(result.frames.size())) {
+      ThrowInputError(cmd.bundles_file, 0,
+                      "no frame could be solved (frame {}: {}); nothing written",
+                      result.frames.front().frame, result.frames.front().reason);
+    }
+  };
+  if (SequenceFormatStreams(format)) {
+    WriteMeshSequenceStreamed(cmd.out, num_frames, static_cast<int>(actor.neutral.V.rows()),
+                              input.first_frame, cmd.fps, solve);
+  } else {
+    MeshSequence seq;
+    solve([&](const MatX3d& mesh) { seq.frames.push_back(mesh); });
+    seq.start_frame = input.first_frame;
+    seq.fps = cmd.fps;
+    seq.topology = actor.neutral;
+    WriteMeshSequence(cmd.out, seq);
+  }
+
+  RayDiagnostics ray_diagnostics;
+  if (!cmd.rays_file.empty()) {
+    const RayConstraintSummary summary = SummarizeRays(ray_residuals);
     spdlog::info("solve: rays: {}", summary.BriefReport());
     ray_diagnostics.summary = {{"rays", summary.rays},
                                {"applied", summary.applied},
@@ -382,42 +501,38 @@ int Run(SolveCommand& cmd, OptionBinding& binding) {
       ray_diagnostics.frames[rays[r].frame_index].push_back(
           {{"marker", actor.markers[rays[r].marker].name},
            {"camera", rays[r].camera},
-           {"status", RayStatusName(residuals[r].status)},
-           {"before_mm", residuals[r].before_mm},
-           {"after_mm", residuals[r].after_mm}});
+           {"status", RayStatusName(ray_residuals[r].status)},
+           {"before_mm", ray_residuals[r].before_mm},
+           {"after_mm", ray_residuals[r].after_mm}});
     }
   }
 
   UnitDiagnostics unit_diagnostics;
-  if (!cmd.weights_file.empty() || !cmd.curves_file.empty() || !cmd.unit_rig_file.empty()) {
-    const UnitRig rig = UnitRigFromActor(actor);
-    const UnitFit fit = FitUnitWeights(rig, actor, result.meshes, input.jaw);
+  if (fit_units) {
+    fit.Summarize();
     const UnitAnimation animation =
-        MakeUnitAnimation(rig, actor, fit, input.jaw, input.first_frame, cmd.fps);
+        MakeUnitAnimation(*unit_rig, actor, fit, input.jaw, input.first_frame, cmd.fps);
     if (!cmd.weights_file.empty()) WriteUnitWeightsCsv(cmd.weights_file, animation);
     if (!cmd.curves_file.empty()) WriteUnitCurvesCsv(cmd.curves_file, animation);
-    if (!cmd.unit_rig_file.empty()) WriteUnitRigUsda(cmd.unit_rig_file, rig, actor, animation, input.jaw);
+    if (!cmd.unit_rig_file.empty()) {
+      WriteUnitRigUsda(cmd.unit_rig_file, *unit_rig, actor, animation, input.jaw);
+    }
     spdlog::info("solve: {} units fitted to the solved meshes: the rig driven by the weights is "
                  "{:.4f} mm from them (mean; worst frame {:.4f})",
-                 rig.names.size(), fit.mean_mm_all, fit.max_frame_mean_mm);
-    unit_diagnostics.summary = {{"units", rig.names.size()},
+                 unit_rig->names.size(), fit.mean_mm_all, fit.max_frame_mean_mm);
+    unit_diagnostics.summary = {{"units", unit_rig->names.size()},
                                 {"mean_mm", fit.mean_mm_all},
                                 {"max_frame_mean_mm", fit.max_frame_mean_mm}};
     unit_diagnostics.frame_mean_mm = fit.mean_mm;
   }
 
-  MeshSequence seq;
-  seq.frames = std::move(result.meshes);
-  seq.start_frame = input.first_frame;
-  seq.fps = cmd.fps;
-  seq.topology = actor.neutral;
-  WriteMeshSequence(cmd.out, seq);
   WriteOptionsUsed(binding.fields(), parent / "options_used.yaml", "solve");
   if (!cmd.topology_file.empty()) WriteObj(cmd.topology_file, actor.neutral);
   if (!cmd.diagnostics_file.empty()) {
     WriteDiagnostics(cmd.diagnostics_file, actor, cmd.options.method, solvers.lgi_model(), result,
-                     input, ray_diagnostics, unit_diagnostics);
+                     input, ray_diagnostics, unit_diagnostics, cmd.diagnostics_detail == "full");
   }
+  WarnIfNotATake(cmd.options, result.report);
   spdlog::info("solve ({}): {}", cmd.options.method,
                result.summary.BriefReport());
   return 0;
@@ -443,7 +558,12 @@ HMC_COMMAND(Solve, "", "solve",
                   "frames")
       ->required();
   app->add_option("--diagnostics", cmd->diagnostics_file,
-                  "Per frame and bundle diagnostics (JSON)");
+                  "Per frame diagnostics (JSON): counts, residuals, each observed bundle's status "
+                  "and residual");
+  app->add_option("--diagnostics_detail", cmd->diagnostics_detail,
+                  "summary: per frame and observed bundle its status and residual; full: every "
+                  "bundle's shapes and weights too (about 50x larger)")
+      ->check(CLI::IsMember({"summary", "full"}));
   app->add_option("--topology", cmd->topology_file,
                   "Also write the meshes' topology (the actor's neutral, mm, with UVs) as "
                   "an OBJ: the mesh a .pc2/.mdd is applied to in Blender (docs/blender.md)");

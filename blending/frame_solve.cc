@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <utility>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -289,6 +290,41 @@ void FillBadMeshes(const TriMesh& neutral, const JawRig* rig,
   for (const FrameSolve& fs : frames) {
     if (!fs.ok) spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
   }
+}
+
+void MeshStream::Good(int f, MatX3d mesh) {
+  last_good_ = std::move(mesh);
+  any_good_ = true;
+  sink_(f, result_->frames[f], last_good_);
+}
+
+void MeshStream::Bad(int f) {
+  const FrameSolve& frame = result_->frames[f];
+  if (any_good_) {
+    sink_(f, frame, last_good_);
+  } else {
+    sink_(f, frame, rig_ ? MatX3d(Skin(*rig_, frame.jaw, neutral_.V)) : neutral_.V);
+  }
+}
+
+void MeshStream::Finish() {
+  int bad = 0;
+  for (const FrameSolve& fs : result_->frames) {
+    if (fs.ok) continue;
+    ++bad;
+    spdlog::warn("frame {}: skipped: {}", fs.frame, fs.reason);
+  }
+  result_->summary.bad_frames = bad;
+  last_good_ = MatX3d();
+}
+
+void DrainMeshes(const MeshSink& sink, SolveResult* result) {
+  HMC_CHECK(result->meshes.size() == result->frames.size());
+  for (size_t f = 0; f < result->meshes.size(); ++f) {
+    sink(static_cast<int>(f), result->frames[f], result->meshes[f]);
+    result->meshes[f] = MatX3d();
+  }
+  result->meshes.clear();
 }
 
 }  // namespace hmc

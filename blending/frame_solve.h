@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -212,5 +213,40 @@ void SolveFrames(const std::vector<BundleFrame>& frames,
 // result->meshes: one per frame, the good ones filled.
 void FillBadMeshes(const TriMesh& neutral, const JawRig* rig,
                    SolveResult* result);
+
+// Where a sequence solve's meshes go when the solve is not to hold them
+// (issue 46: a long take's meshes are written as they are solved): called
+// once per frame, in frame order, with the frame's record and its final
+// mesh (V x 3, mm; a bad frame's filled as FillBadMeshes fills it), which
+// the solve releases after the call. With a sink SolveResult::meshes
+// comes back empty.
+using MeshSink = std::function<void(int f, const FrameSolve& frame, const MatX3d& mesh)>;
+
+// FillBadMeshes for a solve that hands its meshes to a sink as they come:
+// Good(f, mesh) or Bad(f) for every frame in frame order, then Finish()
+// (the warnings FillBadMeshes logs, summary.bad_frames). Holds one mesh:
+// the last good frame's, which a bad frame repeats.
+class MeshStream {
+ public:
+  MeshStream(const TriMesh& neutral, const JawRig* rig, SolveResult* result,
+             const MeshSink& sink)
+      : neutral_(neutral), rig_(rig), result_(result), sink_(sink) {}
+  void Good(int f, MatX3d mesh);
+  void Bad(int f);
+  void Finish();
+
+ private:
+  const TriMesh& neutral_;
+  const JawRig* rig_;
+  SolveResult* result_;
+  const MeshSink& sink_;
+  MatX3d last_good_;
+  bool any_good_ = false;
+};
+
+// Hands a solve's held meshes to `sink` in frame order, releasing each
+// (the methods that hold their meshes anyway, so that every method can
+// stream to a sink).
+void DrainMeshes(const MeshSink& sink, SolveResult* result);
 
 }  // namespace hmc

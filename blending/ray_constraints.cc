@@ -114,6 +114,17 @@ std::vector<RayResidual> ApplyRayConstraints(
     const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
     const RayConstraintOptions& options, std::vector<MatX3d>* meshes,
     const std::vector<Mat3>& site_motion) {
+  return ApplyRayConstraints(rays, sites, F, nn, observed, frame_ok, options,
+                             static_cast<int>(meshes->size()),
+                             [&](int f) { return &(*meshes)[f]; }, site_motion);
+}
+
+std::vector<RayResidual> ApplyRayConstraints(
+    const std::vector<RayConstraint>& rays, const std::vector<SurfacePoint>& sites,
+    const MatX3i& F, const NaturalNeighbourWeights& nn,
+    const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
+    const RayConstraintOptions& options, int num_frames,
+    const std::function<MatX3d*(int f)>& mesh_of, const std::vector<Mat3>& site_motion) {
   const int num_sites = static_cast<int>(sites.size());
   if (nn.weights.cols() != num_sites) {
     throw InputError(fmt::format("ray constraints: {} sites but natural-neighbour weights over {}",
@@ -133,14 +144,16 @@ std::vector<RayResidual> ApplyRayConstraints(
       throw InputError(fmt::format("ray constraints: marker index {} out of range (0..{})",
                                    ray.marker, num_sites - 1));
     }
-    if (ray.frame_index < 0 || ray.frame_index >= static_cast<int>(meshes->size())) {
+    if (ray.frame_index < 0 || ray.frame_index >= num_frames) {
       throw InputError(fmt::format("ray constraints: frame index {} out of range (0..{})",
-                                   ray.frame_index, meshes->size() - 1));
+                                   ray.frame_index, num_frames - 1));
     }
     by_frame[ray.frame_index].push_back(static_cast<int>(r));
   }
   for (const auto& [f, indices] : by_frame) {
-    MatX3d& mesh = (*meshes)[f];
+    MatX3d* const mesh_f = mesh_of(f);
+    if (!mesh_f) continue;
+    MatX3d& mesh = *mesh_f;
     const bool ok = frame_ok.empty() || frame_ok[f];
     // The frame's applicable constraints, one per marker (a marker with
     // two rays in one frame would be a bundle; the first is kept).

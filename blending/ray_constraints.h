@@ -33,6 +33,7 @@
 // mislabelled dot), is not applied; its status says why.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -116,6 +117,18 @@ std::vector<RayResidual> ApplyRayConstraints(
     const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
     const RayConstraintOptions& options, std::vector<MatX3d>* meshes,
     const std::vector<Mat3>& site_motion = {});
+
+// The same over meshes found by frame index, for a solve that hands its
+// meshes over a few frames at a time: mesh_of(f) is frame f's mesh, or
+// nullptr for a frame whose constraints are left to another call (their
+// residuals come back default-constructed); frame indices must lie in
+// 0..num_frames-1.
+std::vector<RayResidual> ApplyRayConstraints(
+    const std::vector<RayConstraint>& rays, const std::vector<SurfacePoint>& sites,
+    const MatX3i& F, const NaturalNeighbourWeights& nn,
+    const std::vector<std::vector<char>>& observed, const std::vector<char>& frame_ok,
+    const RayConstraintOptions& options, int num_frames,
+    const std::function<MatX3d*(int f)>& mesh_of, const std::vector<Mat3>& site_motion = {});
 
 // sum_n c_{k,n} c_{k,n}^T per site k, c_{k,n} the displacement of shape n
 // (V x 3 each, as the actor holds it: the jaw's motion included) at site

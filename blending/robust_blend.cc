@@ -1,6 +1,7 @@
 // Steps 4-6 of the robust solve (blending/robust_solver.h): the
 // natural-neighbour blend of each bundle's weights, plus step 5's
 // correction, skinned with the frame's jaw pose; bad frames filled.
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -170,8 +171,9 @@ std::vector<MatX3d> RobustSolver::BlendBatch(
 }
 
 // Steps 4-6, kBlendBatch good frames at a time; bad frames repeat the
-// previous good mesh.
-void RobustSolver::BlendFrames(Sequence* seq) const {
+// previous good mesh. With a sink the meshes go to it batch by batch, so a
+// long shot holds kBlendBatch meshes, not all of them.
+void RobustSolver::BlendFrames(Sequence* seq, const MeshSink* sink) const {
   const int F = static_cast<int>(seq->work.size());
   std::vector<Work>& work = seq->work;
   SolveResult& result = seq->result;
@@ -182,6 +184,9 @@ void RobustSolver::BlendFrames(Sequence* seq) const {
   s.frames = F;
   const auto* kernel =
       width_index >= 0 ? &vertex_kernel_.at(width_index) : nullptr;
+  std::optional<MeshStream> stream;
+  if (sink) stream.emplace(neutral_, rig, &result, *sink);
+  if (sink) result.meshes.clear();
   for (int begin = 0; begin < F;) {
     std::vector<const Work*> batch_work;
     std::vector<const FrameSolve*> batch_frames;
@@ -196,19 +201,32 @@ void RobustSolver::BlendFrames(Sequence* seq) const {
     for (int f = begin, i = 0; f < end; ++f) {
       FrameSolve& fs = result.frames[f];
       Work& wk = work[f];
-      if (wk.ok) {
-        result.meshes[f] = std::move(blended[i++]);
-        SetResiduals(data_.sites, neutral_.F, result.meshes[f], &fs);
+      const bool ok = wk.ok;
+      if (ok) {
+        MatX3d& mesh = blended[i++];
+        SetResiduals(data_.sites, neutral_.F, mesh, &fs);
+        if (!stream) result.meshes[f] = std::move(mesh);
       }
       // The frame's working state is done with: released as the meshes
       // come, so a long shot holds its meshes and records, not both.
       wk = Work();
       s.Count(fs);
+      if (stream) {
+        if (ok) {
+          stream->Good(f, std::move(blended[i - 1]));
+        } else {
+          stream->Bad(f);
+        }
+      }
       progress.Advance();
     }
     begin = end;
   }
-  FillBadMeshes(neutral_, rig, &result);
+  if (stream) {
+    stream->Finish();
+  } else {
+    FillBadMeshes(neutral_, rig, &result);
+  }
 }
 
 }  // namespace hmc

@@ -159,7 +159,8 @@ MethodReport RobustReport::ToMethodReport(bool interpolate,
 
 SolveResult RobustSolver::SolveSequence(
     const std::vector<BundleFrame>& frames, const std::vector<JawPose>& jaw,
-    const std::vector<std::string>& frame_errors, RobustReport* report_out) {
+    const std::vector<std::string>& frame_errors, RobustReport* report_out,
+    const MeshSink* sink) {
   HMC_CHECK(jaw.empty() || jaw.size() == frames.size());
   HMC_CHECK(frame_errors.empty() || frame_errors.size() == frames.size());
   Sequence seq(smoothers_);
@@ -181,7 +182,7 @@ SolveResult RobustSolver::SolveSequence(
   }
   seq.bases.Clear();  // step 5's decompositions, before the meshes come
   seq.report.lambda = seq.lambda;
-  BlendFrames(&seq);  // steps 4-6
+  BlendFrames(&seq, sink);  // steps 4-6
   const int good_frames = static_cast<int>(seq.good.size());
   spdlog::info("robust: {}",
                seq.report.BriefReport(options_.interpolate, good_frames));

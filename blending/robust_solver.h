@@ -186,10 +186,13 @@ class RobustSolver {
   // LgiSolver::SolveSequence. Each bundle's weights are its lgi choice or
   // the global weights; the residuals are the output mesh's. The result's
   // report is the RobustReport's values; `report` (optional) gets it typed.
+  // sink (optional): each mesh goes to it as its batch is blended, and the
+  // result holds none (frame_solve.h, MeshSink).
   SolveResult SolveSequence(const std::vector<BundleFrame>& frames,
                             const std::vector<JawPose>& jaw,
                             const std::vector<std::string>& frame_errors = {},
-                            RobustReport* report = nullptr);
+                            RobustReport* report = nullptr,
+                            const MeshSink* sink = nullptr);
 
  private:
   struct Work;
@@ -223,8 +226,9 @@ class RobustSolver {
   void ChooseCorrection(Sequence* seq);
   // Step 5: what the correction leaves beyond the threshold, interpolated.
   void InterpolateBeyondThreshold(Sequence* seq) const;
-  // Steps 4-6: the blend of every good frame; bad frames filled.
-  void BlendFrames(Sequence* seq) const;
+  // Steps 4-6: the blend of every good frame; bad frames filled. With a
+  // sink, each mesh goes to it instead of the result.
+  void BlendFrames(Sequence* seq, const MeshSink* sink) const;
   // sum |r_j|^2 over observed bundle k and its observed natural neighbours;
   // *count: how many.
   double NeighbourhoodEnergy(const std::vector<Vec3>& r, const Work& work,

@@ -216,6 +216,49 @@ TEST_P(RobustSeeds, BadFrameRepeatsThePreviousGoodMesh) {
   EXPECT_EQ((result.meshes[2] - result.meshes[0]).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// Streamed to a sink (issue 46: a long take's meshes are written as they
+// are blended), the solve hands over every frame once, in order, with the
+// bytes of the held solve: over several blend batches, with a jaw rig, a
+// bad first frame (the skinned neutral) and bad frames later (the previous
+// good mesh); the result then holds no mesh and the same records.
+TEST_P(RobustSeeds, SinkGetsTheHeldMeshesInOrder) {
+  RobustFixture fx(GetParam(), /*jaw=*/true);
+  std::mt19937 rng(700 + GetParam());
+  const int F = 21;  // three batches of kBlendBatch (8), the last short
+  std::vector<BundleFrame> frames;
+  std::vector<JawPose> poses;
+  std::vector<std::string> errors(F);
+  for (int f = 0; f < F; ++f) {
+    const int n = f % static_cast<int>(fx.actor.shapes.size());
+    frames.push_back(fx.Bundles(f + 1, fx.actor.ShapePositions(n), 0.05, &rng));
+    poses.push_back(fx.actor.shapes[n].jaw);
+  }
+  errors[0] = errors[9] = errors[10] = "tracking lost";
+  const SolveResult held = fx.robust.SolveSequence(frames, poses, errors);
+  std::vector<int> order;
+  std::vector<MatX3d> streamed;
+  const MeshSink sink = [&](int f, const FrameSolve& frame, const MatX3d& mesh) {
+    EXPECT_EQ(frame.frame, f + 1);
+    order.push_back(f);
+    streamed.push_back(mesh);
+  };
+  const SolveResult result = fx.robust.SolveSequence(frames, poses, errors, nullptr, &sink);
+  EXPECT_TRUE(result.meshes.empty());
+  ASSERT_EQ(order.size(), static_cast<size_t>(F));
+  for (int f = 0; f < F; ++f) {
+    EXPECT_EQ(order[f], f);
+    EXPECT_TRUE(streamed[f] == held.meshes[f]) << "frame " << f;
+    EXPECT_EQ(result.frames[f].ok, held.frames[f].ok);
+    for (size_t k = 0; k < held.frames[f].bundles.size(); ++k) {
+      EXPECT_EQ(result.frames[f].bundles[k].residual, held.frames[f].bundles[k].residual);
+    }
+  }
+  EXPECT_EQ(result.summary.bad_frames, 3);
+  EXPECT_EQ(held.summary.bad_frames, 3);
+  EXPECT_TRUE(streamed[0] == MatX3d(Skin(*fx.actor.jaw_rig, poses[0], fx.actor.neutral.V)));
+  EXPECT_TRUE(streamed[10] == streamed[8]);
+}
+
 // The shape prior's noise (the evidence's, floored by the choice's noise).
 // Noise-free combinations of dataset shapes with a small nonlinear part (as
 // combinations of facial action units have): it stays at the misfit's level,

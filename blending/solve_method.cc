@@ -168,7 +168,23 @@ void MethodSolvers::Prepare(const std::string& method) {
 SolveResult MethodSolvers::Solve(const std::string& method,
                                  const std::vector<BundleFrame>& frames,
                                  const std::vector<JawPose>& jaw,
-                                 const std::vector<std::string>& frame_errors) {
+                                 const std::vector<std::string>& frame_errors,
+                                 const MeshSink* sink) {
+  if (method == "robust" || method == "robust-global") {
+    Prepare(method);
+    last_reused_seconds_ = 0.0;
+    RobustSolver& solver = method == "robust" ? *robust_ : *robust_global_;
+    return solver.SolveSequence(frames, jaw, frame_errors, nullptr, sink);
+  }
+  SolveResult result = SolveHeld(method, frames, jaw, frame_errors);
+  if (sink) DrainMeshes(*sink, &result);
+  return result;
+}
+
+SolveResult MethodSolvers::SolveHeld(const std::string& method,
+                                     const std::vector<BundleFrame>& frames,
+                                     const std::vector<JawPose>& jaw,
+                                     const std::vector<std::string>& frame_errors) {
   Prepare(method);
   last_reused_seconds_ = 0.0;
   if (method == "lgi") {
@@ -190,12 +206,6 @@ SolveResult MethodSolvers::Solve(const std::string& method,
       return lgi_rbf_->SolveFromLgi(lgi_memo_->result);
     }
     return lgi_rbf_->SolveSequence(frames, jaw, frame_errors);
-  }
-  if (method == "robust") {
-    return robust_->SolveSequence(frames, jaw, frame_errors);
-  }
-  if (method == "robust-global") {
-    return robust_global_->SolveSequence(frames, jaw, frame_errors);
   }
   if (method == "blendshape") {
     return blendshape_->SolveSequence(frames, jaw, frame_errors);

@@ -73,11 +73,15 @@ class MethodSolvers {
 
   // Solves a sequence with `method` (CheckSolveMethod first). jaw: one pose
   // per frame or empty; frame_errors: empty or one per frame, a non-empty
-  // entry marks that frame bad.
+  // entry marks that frame bad. sink (optional): the meshes go to it in
+  // frame order and the result holds none (blending/frame_solve.h); the
+  // robust methods hand each over as it is blended, so that they are never
+  // all held, the others when their sequence is solved.
   SolveResult Solve(const std::string& method,
                     const std::vector<BundleFrame>& frames,
                     const std::vector<JawPose>& jaw,
-                    const std::vector<std::string>& frame_errors = {});
+                    const std::vector<std::string>& frame_errors = {},
+                    const MeshSink* sink = nullptr);
 
   // Wall time of earlier work a Solve reused: lgi-rbf on the inputs of the
   // previous lgi solve reuses its per-bundle choices (s; 0 otherwise).
@@ -89,6 +93,13 @@ class MethodSolvers {
   const ShapeData& data();
 
  private:
+  // Solve for the methods that hold every mesh until their sequence is
+  // solved (all but the robust ones).
+  SolveResult SolveHeld(const std::string& method,
+                        const std::vector<BundleFrame>& frames,
+                        const std::vector<JawPose>& jaw,
+                        const std::vector<std::string>& frame_errors);
+
   const Actor& actor_;
   MethodOptions options_;
   IndexCacheWrite write_cache_ = IndexCacheWrite::kNone;

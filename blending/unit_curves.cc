@@ -99,46 +99,62 @@ MatX3d EvaluateUnitRig(const UnitRig& rig, const Actor& actor, const Eigen::Vect
   return actor.jaw_rig ? Skin(*actor.jaw_rig, jaw, x) : x;
 }
 
-UnitFit FitUnitWeights(const UnitRig& rig, const Actor& actor, const std::vector<MatX3d>& meshes,
-                       const std::vector<JawPose>& jaw) {
+UnitFitter::UnitFitter(const UnitRig& rig, const Actor& actor) : rig_(rig), actor_(actor) {
   const int U = static_cast<int>(rig.names.size());
-  Eigen::MatrixXd G(U, U);
+  G_.resize(U, U);
   ParallelFor(0, U, [&](int64_t i) {
     for (int j = 0; j < U; ++j) {
-      G(i, j) = (rig.displacement[i].array() * rig.displacement[j].array()).sum();
+      G_(i, j) = (rig.displacement[i].array() * rig.displacement[j].array()).sum();
     }
   });
+}
+
+double UnitFitter::Fit(const MatX3d& mesh, const JawPose& pose, Eigen::VectorXd* weights) const {
+  const int U = static_cast<int>(rig_.names.size());
+  const MatX3d y =
+      (actor_.jaw_rig ? Unskin(*actor_.jaw_rig, pose, mesh) : mesh) - actor_.neutral.V;
+  Eigen::VectorXd c(U);
+  for (int u = 0; u < U; ++u) c[u] = (rig_.displacement[u].array() * y.array()).sum();
+  // Projected coordinate descent on 1/2 w'Gw - c'w, 0 <= w <= 1: each
+  // step minimises exactly along one coordinate within the box, so the
+  // cost never rises; stopped when no weight moves by more than 1e-10.
+  Eigen::VectorXd& w = *weights;
+  w = Eigen::VectorXd::Zero(U);
+  for (int sweep = 0; sweep < 20000; ++sweep) {
+    double largest = 0.0;
+    for (int u = 0; u < U; ++u) {
+      if (!(G_(u, u) > 0)) continue;  // a unit that moves nothing
+      const double step = (c[u] - G_.row(u).dot(w)) / G_(u, u);
+      const double next = std::clamp(w[u] + step, 0.0, 1.0);
+      largest = std::max(largest, std::abs(next - w[u]));
+      w[u] = next;
+    }
+    if (largest < 1e-10) break;
+  }
+  return (EvaluateUnitRig(rig_, actor_, w, pose) - mesh).rowwise().norm().mean();
+}
+
+void UnitFit::Summarize() {
+  const int F = static_cast<int>(mean_mm.size());
+  mean_mm_all = 0.0;
+  max_frame_mean_mm = 0.0;
+  for (double e : mean_mm) {
+    mean_mm_all += e / std::max(F, 1);
+    max_frame_mean_mm = std::max(max_frame_mean_mm, e);
+  }
+}
+
+UnitFit FitUnitWeights(const UnitRig& rig, const Actor& actor, const std::vector<MatX3d>& meshes,
+                       const std::vector<JawPose>& jaw) {
+  const UnitFitter fitter(rig, actor);
   const int F = static_cast<int>(meshes.size());
   UnitFit fit;
-  fit.weights.assign(F, Eigen::VectorXd::Zero(U));
+  fit.weights.assign(F, Eigen::VectorXd());
   fit.mean_mm.assign(F, 0.0);
   ParallelFor(0, F, [&](int64_t f) {
-    const JawPose pose = jaw.empty() ? JawPose() : jaw[f];
-    const MatX3d y =
-        (actor.jaw_rig ? Unskin(*actor.jaw_rig, pose, meshes[f]) : meshes[f]) - actor.neutral.V;
-    Eigen::VectorXd c(U);
-    for (int u = 0; u < U; ++u) c[u] = (rig.displacement[u].array() * y.array()).sum();
-    // Projected coordinate descent on 1/2 w'Gw - c'w, 0 <= w <= 1: each
-    // step minimises exactly along one coordinate within the box, so the
-    // cost never rises; stopped when no weight moves by more than 1e-10.
-    Eigen::VectorXd& w = fit.weights[f];
-    for (int sweep = 0; sweep < 20000; ++sweep) {
-      double largest = 0.0;
-      for (int u = 0; u < U; ++u) {
-        if (!(G(u, u) > 0)) continue;  // a unit that moves nothing
-        const double step = (c[u] - G.row(u).dot(w)) / G(u, u);
-        const double next = std::clamp(w[u] + step, 0.0, 1.0);
-        largest = std::max(largest, std::abs(next - w[u]));
-        w[u] = next;
-      }
-      if (largest < 1e-10) break;
-    }
-    fit.mean_mm[f] = (EvaluateUnitRig(rig, actor, w, pose) - meshes[f]).rowwise().norm().mean();
+    fit.mean_mm[f] = fitter.Fit(meshes[f], jaw.empty() ? JawPose() : jaw[f], &fit.weights[f]);
   });
-  for (double e : fit.mean_mm) {
-    fit.mean_mm_all += e / std::max(F, 1);
-    fit.max_frame_mean_mm = std::max(fit.max_frame_mean_mm, e);
-  }
+  fit.Summarize();
   return fit;
 }
 

@@ -56,6 +56,24 @@ struct UnitFit {
                                          // of |x(w, theta) - X|
   double mean_mm_all = 0.0;              // over every frame and vertex
   double max_frame_mean_mm = 0.0;
+  // Sets the last two from mean_mm.
+  void Summarize();
+};
+
+// The fit of one mesh at a time (FitUnitWeights fits every frame with it),
+// for a solve that hands its meshes over as they come: the units' Gram
+// matrix is computed once. rig and actor must outlive it.
+class UnitFitter {
+ public:
+  UnitFitter(const UnitRig& rig, const Actor& actor);
+  // Fits the weights (U, in [0, 1]) of `mesh` (V x 3) with the frame's jaw
+  // pose; returns the mean over the vertices of |x(w, theta) - mesh| (mm).
+  double Fit(const MatX3d& mesh, const JawPose& pose, Eigen::VectorXd* weights) const;
+
+ private:
+  const UnitRig& rig_;
+  const Actor& actor_;
+  Eigen::MatrixXd G_;  // U x U: sum over vertices of d_u . d_v
 };
 
 // meshes: the solved meshes; jaw: one pose per mesh, or empty (zero pose).

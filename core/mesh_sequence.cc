@@ -105,4 +105,45 @@ void WriteMeshSequence(const fs::path& path, const MeshSequence& seq,
   }
 }
 
+bool SequenceFormatStreams(SequenceFormat format) {
+  return format == SequenceFormat::kPc2 || format == SequenceFormat::kMdd;
+}
+
+void WriteMeshSequenceStreamed(const fs::path& path, int64_t num_frames,
+                               int num_points, int start_frame, double fps,
+                               const std::function<void(const EmitMesh& emit)>& produce) {
+  const SequenceFormat format = SequenceFormatFromPath(path);
+  if (!SequenceFormatStreams(format)) {
+    ThrowInputError(path, 0, "only .pc2 and .mdd are written frame by frame");
+  }
+  const bool big_endian = format == SequenceFormat::kMdd;
+  sequence_io::CheckSequenceHeader(path, num_frames, num_points, start_frame, fps);
+  WriteFileAtomic(
+      path,
+      [&](std::ostream& out) {
+        if (big_endian) {
+          sequence_io::WriteMddHeader(out, num_points, start_frame, num_frames, fps);
+        } else {
+          sequence_io::WritePc2Header(out, num_points, start_frame, num_frames);
+        }
+        std::string buffer;
+        int64_t written = 0;
+        produce([&](const MatX3d& mesh) {
+          if (written >= num_frames) {
+            ThrowInputError(path, 0, "cannot write: more than the {} frames announced",
+                            num_frames);
+          }
+          sequence_io::CheckFrameValues(path, mesh, start_frame + written, num_points,
+                                        start_frame);
+          sequence_io::WriteFrameF32(out, mesh, big_endian, &buffer);
+          ++written;
+        });
+        if (written != num_frames) {
+          ThrowInputError(path, 0, "cannot write: {} of the {} frames announced came",
+                          written, num_frames);
+        }
+      },
+      /*binary=*/true);
+}
+
 }  // namespace hmc

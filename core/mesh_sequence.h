@@ -7,6 +7,7 @@
 // All writes are atomic. Formats: docs/formats.md.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -68,5 +69,24 @@ bool SequenceFormatHasTopology(SequenceFormat format);
 // as that float (fewer digits if precision < 9).
 void WriteMeshSequence(const std::filesystem::path& path,
                        const MeshSequence& seq, int precision = 9);
+
+// True for the formats WriteMeshSequenceStreamed writes (.pc2, .mdd: the
+// point caches, whose header needs only the counts).
+bool SequenceFormatStreams(SequenceFormat format);
+
+// Writes a .pc2 or .mdd whose frames come one at a time, so a long
+// sequence is never held whole (issue 46: the solve writes each mesh as it
+// is final). The header is written first from num_frames, num_points,
+// start_frame and fps; then produce(emit) runs and must call emit(mesh)
+// once per frame, in order (V x 3, mm; rounded to float32 as written, so
+// the bytes equal WriteMeshSequence's of the same frames). Atomic as
+// WriteMeshSequence: the frames go to a temporary file renamed at the end;
+// a frame it would refuse (vertex count, non-finite or beyond float32),
+// another number of frames than num_frames, or an exception from produce
+// leaves nothing and the previous file as it was.
+using EmitMesh = std::function<void(const MatX3d& mesh)>;
+void WriteMeshSequenceStreamed(const std::filesystem::path& path, int64_t num_frames,
+                               int num_points, int start_frame, double fps,
+                               const std::function<void(const EmitMesh& emit)>& produce);
 
 }  // namespace hmc

@@ -32,47 +32,61 @@ namespace hmc::sequence_io {
 // Checks what every format needs: at least one frame, one vertex count, and
 // values a float32 file can hold (all formats are float32 in the DCCs that
 // read them). Returns the vertex count.
-int CheckFrames(const fs::path& path, const MeshSequence& seq) {
-  if (seq.frames.empty()) {
+void CheckSequenceHeader(const fs::path& path, int64_t num_frames,
+                         int64_t num_points, int start_frame, double fps) {
+  if (num_frames <= 0) {
     ThrowInputError(path, 0, "cannot write a mesh sequence with no frames");
   }
-  const int64_t num_points = seq.frames[0].rows();
-  if (num_points == 0) {
+  if (num_points <= 0) {
     ThrowInputError(path, 0, "cannot write a mesh sequence with no vertices");
   }
-  if (!(seq.fps > 0) || !std::isfinite(seq.fps)) {
+  if (!(fps > 0) || !std::isfinite(fps)) {
     ThrowInputError(path, 0, "cannot write: frame rate {} is not positive",
-                    seq.fps);
+                    fps);
   }
-  const int64_t last_frame =
-      static_cast<int64_t>(seq.start_frame) + seq.frames.size() - 1;
-  if (std::abs(static_cast<int64_t>(seq.start_frame)) > kMaxFrameNumber ||
+  const int64_t last_frame = static_cast<int64_t>(start_frame) + num_frames - 1;
+  if (std::abs(static_cast<int64_t>(start_frame)) > kMaxFrameNumber ||
       std::abs(last_frame) > kMaxFrameNumber) {
     ThrowInputError(path, 0,
                     "cannot write: frame numbers {}..{} exceed +-{} (float32 "
                     "frame numbers)",
-                    seq.start_frame, last_frame, kMaxFrameNumber);
+                    start_frame, last_frame, kMaxFrameNumber);
   }
+}
+
+void CheckFrameValues(const fs::path& path, const MatX3d& X,
+                      int64_t frame_number, int64_t num_points,
+                      int start_frame) {
   constexpr double kFloatMax = std::numeric_limits<float>::max();
-  for (size_t f = 0; f < seq.frames.size(); ++f) {
-    const MatX3d& X = seq.frames[f];
-    if (X.rows() != num_points) {
-      ThrowInputError(path, 0,
-                      "cannot write: frame {} has {} vertices, frame {} has {}",
-                      seq.start_frame + static_cast<int64_t>(f), X.rows(),
-                      seq.start_frame, num_points);
-    }
-    for (int64_t v = 0; v < X.rows(); ++v) {
-      for (int axis = 0; axis < 3; ++axis) {
-        const double x = X(v, axis);
-        if (!std::isfinite(x) || std::abs(x) > kFloatMax) {
-          ThrowInputError(path, 0,
-                          "cannot write: vertex {} of frame {} is {} (not a "
-                          "finite float32)",
-                          v, seq.start_frame + static_cast<int64_t>(f), x);
-        }
+  if (X.rows() != num_points) {
+    ThrowInputError(path, 0,
+                    "cannot write: frame {} has {} vertices, frame {} has {}",
+                    frame_number, X.rows(), start_frame, num_points);
+  }
+  for (int64_t v = 0; v < X.rows(); ++v) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const double x = X(v, axis);
+      if (!std::isfinite(x) || std::abs(x) > kFloatMax) {
+        ThrowInputError(path, 0,
+                        "cannot write: vertex {} of frame {} is {} (not a "
+                        "finite float32)",
+                        v, frame_number, x);
       }
     }
+  }
+}
+
+int CheckFrames(const fs::path& path, const MeshSequence& seq) {
+  const int64_t num_points = seq.frames.empty() ? 0 : seq.frames[0].rows();
+  if (seq.frames.empty()) {
+    ThrowInputError(path, 0, "cannot write a mesh sequence with no frames");
+  }
+  CheckSequenceHeader(path, static_cast<int64_t>(seq.frames.size()), num_points,
+                      seq.start_frame, seq.fps);
+  for (size_t f = 0; f < seq.frames.size(); ++f) {
+    CheckFrameValues(path, seq.frames[f],
+                     seq.start_frame + static_cast<int64_t>(f), num_points,
+                     seq.start_frame);
   }
   return static_cast<int>(num_points);
 }
@@ -147,19 +161,22 @@ int32_t GetI32(const char* in, bool big_endian) {
 }
 
 // Writes each frame as V x 3 float32.
+void WriteFrameF32(std::ostream& out, const MatX3d& X, bool big_endian,
+                   std::string* buffer) {
+  buffer->resize(static_cast<size_t>(X.rows()) * 12);
+  char* p = buffer->data();
+  for (int64_t v = 0; v < X.rows(); ++v) {
+    for (int axis = 0; axis < 3; ++axis, p += 4) {
+      PutF32(p, static_cast<float>(X(v, axis)), big_endian);
+    }
+  }
+  out.write(buffer->data(), static_cast<std::streamsize>(buffer->size()));
+}
+
 void WriteFramesF32(std::ostream& out, const MeshSequence& seq,
                     bool big_endian) {
   std::string buffer;
-  for (const MatX3d& X : seq.frames) {
-    buffer.resize(static_cast<size_t>(X.rows()) * 12);
-    char* p = buffer.data();
-    for (int64_t v = 0; v < X.rows(); ++v) {
-      for (int axis = 0; axis < 3; ++axis, p += 4) {
-        PutF32(p, static_cast<float>(X(v, axis)), big_endian);
-      }
-    }
-    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  }
+  for (const MatX3d& X : seq.frames) WriteFrameF32(out, X, big_endian, &buffer);
 }
 
 void CheckTopologyCount(const fs::path& path, const TriMesh* topology,

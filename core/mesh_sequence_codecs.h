@@ -32,6 +32,14 @@ constexpr int kMaxFrameNumber = 1 << 24;
 // values a float32 file can hold (all formats are float32 in the DCCs that
 // read them). Returns the vertex count.
 int CheckFrames(const fs::path& path, const MeshSequence& seq);
+// Its two parts, for a writer that gets its frames one at a time: the
+// sequence's size and numbering, and one frame (frame_number: for the
+// message; start_frame: the frame that set num_points).
+void CheckSequenceHeader(const fs::path& path, int64_t num_frames,
+                         int64_t num_points, int start_frame, double fps);
+void CheckFrameValues(const fs::path& path, const MatX3d& X,
+                      int64_t frame_number, int64_t num_points,
+                      int start_frame);
 // The topology a writer that stores one may write (seq.topology, checked
 // against num_points).
 TriMesh TopologyForWrite(const fs::path& path, const MeshSequence& seq,
@@ -46,6 +54,9 @@ int32_t GetI32(const char* in, bool big_endian);
 // Writes each frame as V x 3 float32.
 void WriteFramesF32(std::ostream& out, const MeshSequence& seq,
                     bool big_endian);
+// One frame of it (buffer: reused between frames).
+void WriteFrameF32(std::ostream& out, const MatX3d& X, bool big_endian,
+                   std::string* buffer);
 
 // A binary file read in full with its size checked against what the header
 // promises before anything is allocated from header values.
@@ -105,6 +116,11 @@ void CheckTopologyCount(const fs::path& path, const TriMesh* topology,
 
 // The codecs.
 void WritePc2(const fs::path& path, const MeshSequence& seq);
+// The headers of the two point caches (frames follow as WriteFrameF32).
+void WritePc2Header(std::ostream& out, int num_points, int start_frame,
+                    int64_t num_frames);
+void WriteMddHeader(std::ostream& out, int num_points, int start_frame,
+                    int64_t num_frames, double fps);
 MeshSequence ReadPc2(const fs::path& path,
                      const MeshSequenceReadOptions& options);
 void WriteMdd(const fs::path& path, const MeshSequence& seq);

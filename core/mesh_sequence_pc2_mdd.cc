@@ -64,19 +64,25 @@ int64_t PromisedBytes(const BinaryFile& file, const char* unit, int32_t count,
 // frame, float32 sample rate, int32 samples}, then samples x points x 3
 // float32.
 
+void WritePc2Header(std::ostream& out, int num_points, int start_frame,
+                    int64_t num_frames) {
+  char header[kPc2HeaderBytes];
+  std::memcpy(header, kPc2Magic, 12);
+  PutU32(header + 12, 1, false);
+  PutU32(header + 16, static_cast<uint32_t>(num_points), false);
+  PutF32(header + 20, static_cast<float>(start_frame), false);
+  PutF32(header + 24, 1.0f, false);
+  PutU32(header + 28, static_cast<uint32_t>(num_frames), false);
+  out.write(header, kPc2HeaderBytes);
+}
+
 void WritePc2(const fs::path& path, const MeshSequence& seq) {
   const int num_points = CheckFrames(path, seq);
   WriteFileAtomic(
       path,
       [&](std::ostream& out) {
-        char header[kPc2HeaderBytes];
-        std::memcpy(header, kPc2Magic, 12);
-        PutU32(header + 12, 1, false);
-        PutU32(header + 16, static_cast<uint32_t>(num_points), false);
-        PutF32(header + 20, static_cast<float>(seq.start_frame), false);
-        PutF32(header + 24, 1.0f, false);
-        PutU32(header + 28, static_cast<uint32_t>(seq.frames.size()), false);
-        out.write(header, kPc2HeaderBytes);
+        WritePc2Header(out, num_points, seq.start_frame,
+                       static_cast<int64_t>(seq.frames.size()));
         WriteFramesF32(out, seq, /*big_endian=*/false);
       },
       /*binary=*/true);
@@ -158,21 +164,25 @@ MeshSequence ReadPc2(const fs::path& path,
 // write time = frame number / fps, so a Mesh Cache modifier in "Seconds"
 // time mode lines the frames up with the scene's.
 
+void WriteMddHeader(std::ostream& out, int num_points, int start_frame,
+                    int64_t num_frames, double fps) {
+  std::string header(8 + 4 * static_cast<size_t>(num_frames), '\0');
+  PutU32(header.data(), static_cast<uint32_t>(num_frames), true);
+  PutU32(header.data() + 4, static_cast<uint32_t>(num_points), true);
+  for (int64_t f = 0; f < num_frames; ++f) {
+    const double time_s = (start_frame + static_cast<double>(f)) / fps;
+    PutF32(header.data() + 8 + 4 * f, static_cast<float>(time_s), true);
+  }
+  out.write(header.data(), static_cast<std::streamsize>(header.size()));
+}
+
 void WriteMdd(const fs::path& path, const MeshSequence& seq) {
   const int num_points = CheckFrames(path, seq);
   WriteFileAtomic(
       path,
       [&](std::ostream& out) {
-        const size_t num_frames = seq.frames.size();
-        std::string header(8 + 4 * num_frames, '\0');
-        PutU32(header.data(), static_cast<uint32_t>(num_frames), true);
-        PutU32(header.data() + 4, static_cast<uint32_t>(num_points), true);
-        for (size_t f = 0; f < num_frames; ++f) {
-          const double time_s =
-              (seq.start_frame + static_cast<double>(f)) / seq.fps;
-          PutF32(header.data() + 8 + 4 * f, static_cast<float>(time_s), true);
-        }
-        out.write(header.data(), static_cast<std::streamsize>(header.size()));
+        WriteMddHeader(out, num_points, seq.start_frame,
+                       static_cast<int64_t>(seq.frames.size()), seq.fps);
         WriteFramesF32(out, seq, /*big_endian=*/true);
       },
       /*binary=*/true);

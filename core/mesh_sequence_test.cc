@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -538,6 +539,58 @@ TEST(MeshSequenceTest, FailedWriteKeepsThePreviousOutput) {
   empty.frames.clear();
   EXPECT_THROW(WriteMeshSequence(dir / "empty.mdd", empty), InputError);
   EXPECT_FALSE(fs::exists(dir / "empty.mdd"));
+}
+
+// The point caches written frame by frame (the solve's streaming output)
+// are the bytes WriteMeshSequence writes for the same frames, for values
+// that are not float32 (rounded alike) on varied seeds; a frame it would
+// refuse, too few or too many frames, or a producer that throws leave the
+// previous file and no temporary.
+TEST(MeshSequenceTest, StreamedPointCachesEqualWholeWrites) {
+  const TempDir temp_dir("hmc_mesh_sequence_" + std::string("streamed"));
+  const fs::path& dir = temp_dir.path();
+  for (unsigned seed : {3u, 11u, 29u}) {
+    const MeshSequence seq = RandomSequence(seed, 2 + static_cast<int>(seed % 5), false);
+    for (const char* ext : {".pc2", ".mdd"}) {
+      const fs::path whole = dir / (std::string("whole") + ext);
+      const fs::path streamed = dir / (std::string("streamed") + ext);
+      WriteMeshSequence(whole, seq);
+      WriteMeshSequenceStreamed(streamed, static_cast<int64_t>(seq.frames.size()),
+                                static_cast<int>(seq.frames[0].rows()), seq.start_frame, seq.fps,
+                                [&](const EmitMesh& emit) {
+                                  for (const MatX3d& X : seq.frames) emit(X);
+                                });
+      EXPECT_EQ(ReadFile(whole), ReadFile(streamed)) << ext << " seed " << seed;
+    }
+  }
+  const MeshSequence good = RandomSequence(6, 3, true);
+  const int V = static_cast<int>(good.frames[0].rows());
+  for (const char* name : {"seq.pc2", "seq.mdd"}) {
+    const fs::path path = dir / name;
+    WriteMeshSequence(path, good);
+    const std::string before = ReadFile(path);
+    const int entries = CountEntries(dir);
+    auto write = [&](int64_t announced, int emitted, bool broken) {
+      WriteMeshSequenceStreamed(path, announced, V, good.start_frame, good.fps,
+                                [&](const EmitMesh& emit) {
+                                  for (int f = 0; f < emitted; ++f) {
+                                    MatX3d X = good.frames[f % 3];
+                                    if (broken && f == emitted - 1) X(0, 2) = INFINITY;
+                                    emit(X);
+                                  }
+                                });
+    };
+    ExpectInputErrorNaming(path, [&] { write(3, 3, true); }, "not a finite");
+    ExpectInputErrorNaming(path, [&] { write(3, 2, false); }, "2 of the 3 frames");
+    ExpectInputErrorNaming(path, [&] { write(3, 4, false); }, "more than the 3 frames");
+    EXPECT_THROW(WriteMeshSequenceStreamed(path, 3, V, good.start_frame, good.fps,
+                                           [](const EmitMesh&) { throw std::runtime_error("x"); }),
+                 std::runtime_error);
+    EXPECT_EQ(ReadFile(path), before) << name;
+    EXPECT_EQ(CountEntries(dir), entries) << "temporary left by " << name;
+  }
+  EXPECT_THROW(WriteMeshSequenceStreamed(dir / "seq.usda", 1, V, 1, 30, [](const EmitMesh&) {}),
+               InputError);
 }
 
 // Found by fuzzing (docs/reliability.md): headers whose sample x point

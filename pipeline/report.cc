@@ -180,6 +180,16 @@ class ReportWriter {
   void JawSection();
   void SolveSection(const Actor& actor);
   void ContactSheet(const Actor& actor);
+  // One footage panel of the contact sheet: `grey` (8-bit, the crop's
+  // picture at any size) scaled to mesh_px rows, as `crop` (full-image px)
+  // at `scale` (panel px per image px), with the frame's named dots.
+  cv::Mat FootagePanel(const cv::Mat& grey, const cv::Rect& crop, double scale, int frame,
+                       const std::string& camera) const;
+  // The footage panels of the chosen frames, per frame one per camera in
+  // `names` order, from the track stage's proxies; false when they do not
+  // hold every one.
+  bool ProxyFootage(const std::set<int>& chosen, const std::vector<std::string>& names,
+                    std::map<int, std::vector<cv::Mat>>* panels) const;
   // The contact sheet's frames, spread evenly over the reconstruction.
   std::set<int> ContactFrames() const;
 
@@ -579,62 +589,112 @@ std::set<int> ReportWriter::ContactFrames() const {
   return chosen;
 }
 
+// The footage panel of one camera's frame: the image cropped to `crop`
+// (full-image px), `rows` tall, with the frame's named dots circled.
+cv::Mat ReportWriter::FootagePanel(const cv::Mat& grey, const cv::Rect& crop, double scale, int frame,
+                                   const std::string& camera) const {
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  const cv::Size size(std::max(1, static_cast<int>(std::lround(crop.width * scale))),
+                      options_.mesh_px);
+  if (bgr.size() != size) {
+    cv::resize(bgr, bgr, size, 0, 0, bgr.rows > size.height ? cv::INTER_AREA : cv::INTER_LINEAR);
+  }
+  for (const auto& [key, px] : named_) {
+    if (std::get<0>(key) != frame || std::get<1>(key) != camera) continue;
+    const cv::Point2d p((px.x() - crop.x + 0.5) * scale - 0.5, (px.y() - crop.y + 0.5) * scale - 0.5);
+    cv::circle(bgr, p, 3, cv::Scalar(80, 220, 80), 1, cv::LINE_AA);
+  }
+  return bgr;
+}
+
+bool ReportWriter::ProxyFootage(const std::set<int>& chosen, const std::vector<std::string>& names,
+                                std::map<int, std::vector<cv::Mat>>* panels) const {
+  const fs::path dir = Stage("track", "proxies");
+  if (!Exists(dir / "proxies.json")) return false;
+  nlohmann::json p;
+  try {
+    p = nlohmann::json::parse(ReadFile(dir / "proxies.json"));
+  } catch (const std::exception&) {
+    return false;  // decode the footage instead
+  }
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& c : p.value("cameras", nlohmann::json::array())) by_name[c.value("name", "")] = c;
+  for (const std::string& name : names) {
+    const auto cam = by_name.find(name);
+    if (cam == by_name.end()) return false;
+    const std::vector<int> crop = cam->second.value("crop", std::vector<int>{});
+    if (crop.size() != 4 || crop[3] <= 0) return false;
+    const cv::Rect rect(crop[0], crop[1], crop[2], crop[3]);
+    const double scale = static_cast<double>(options_.mesh_px) / rect.height;
+    for (const int f : chosen) {
+      const cv::Mat grey = cv::imread((dir / name / fmt::format("{:06d}.jpg", f)).string(),
+                                      cv::IMREAD_GRAYSCALE);
+      if (grey.empty()) return false;
+      (*panels)[f].push_back(FootagePanel(grey, rect, scale, f, name));
+    }
+  }
+  return true;
+}
+
 void ReportWriter::ContactSheet(const Actor& actor) {
   const std::set<int> chosen = ContactFrames();
   if (chosen.empty()) return;
   std::vector<std::string> names = {"cam0", "cam1"};
   const fs::path cal = Stage("calibrate", "calibration.yaml");
   if (Exists(cal)) names = ReadCalibration(cal).CameraNames();
-  FootageOptions footage;
-  footage.frames = fmt::format("{}:{}", *chosen.begin(), *chosen.rbegin());
-  std::vector<cv::Mat> rows;
-  try {
-    FootageReader reader(shot_, names, footage);
-    FootageFrame frame;
-    MeshRenderOptions render;
-    render.height = options_.mesh_px;
-    render.width = options_.mesh_px * 4 / 5;
-    // The frames between are passed over, not turned into images.
-    while (reader.Next(&frame, [&chosen](int f) { return chosen.count(f) > 0; })) {
-      std::vector<cv::Mat> panels;
-      std::vector<std::string> labels;
-      for (int c = 0; c < reader.num_cameras(); ++c) {
-        cv::Mat bgr;
-        if (frame.images[c].empty()) {
-          bgr = cv::Mat(reader.image_size(c), CV_8UC3, cv::Scalar(40, 40, 90));
-        } else {
-          cv::cvtColor(ToGrey8(frame.images[c]), bgr, cv::COLOR_GRAY2BGR);
+  // The footage panels: the track stage's proxies, made as it decoded the
+  // footage (issue 46: the report decodes nothing again), else decoded
+  // here (a workspace tracked without proxies).
+  std::map<int, std::vector<cv::Mat>> footage_panels;
+  if (!ProxyFootage(chosen, names, &footage_panels)) {
+    footage_panels.clear();
+    FootageOptions footage;
+    footage.frames = fmt::format("{}:{}", *chosen.begin(), *chosen.rbegin());
+    try {
+      FootageReader reader(shot_, names, footage);
+      FootageFrame frame;
+      // The frames between are passed over, not turned into images.
+      while (reader.Next(&frame, [&chosen](int f) { return chosen.count(f) > 0; })) {
+        for (int c = 0; c < reader.num_cameras(); ++c) {
+          // Framed on the camera's named dots over the shot (the fisheye
+          // sees far more than the face), so the dots can be told apart.
+          const cv::Rect crop = NamedDotsBox(tracks_, names[c], reader.image_size(c));
+          const double scale = static_cast<double>(options_.mesh_px) / crop.height;
+          if (frame.images[c].empty()) {
+            footage_panels[frame.frame].push_back(
+                cv::Mat(cv::Size(std::lround(crop.width * scale), options_.mesh_px), CV_8UC3,
+                        cv::Scalar(40, 40, 90)));
+          } else {
+            footage_panels[frame.frame].push_back(
+                FootagePanel(ToGrey8(frame.images[c])(crop), crop, scale, frame.frame, names[c]));
+          }
         }
-        // Framed on the camera's named dots over the shot (the fisheye sees
-        // far more than the face), so the dots can be told apart.
-        const cv::Rect crop = NamedDotsBox(tracks_, names[c], bgr.size());
-        bgr = bgr(crop).clone();
-        const double s = static_cast<double>(options_.mesh_px) / bgr.rows;
-        cv::resize(bgr, bgr, cv::Size(), s, s, s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
-        for (const auto& [key, px] : named_) {
-          if (std::get<0>(key) != frame.frame || std::get<1>(key) != names[c]) continue;
-          const cv::Point2d p((px.x() - crop.x + 0.5) * s - 0.5, (px.y() - crop.y + 0.5) * s - 0.5);
-          cv::circle(bgr, p, 3, cv::Scalar(80, 220, 80), 1, cv::LINE_AA);
-        }
-        panels.push_back(bgr);
-        labels.push_back(fmt::format("frame {} {}", frame.frame, names[c]));
       }
-      const int i = frame.frame - recon_.start_frame;
-      TriMesh mesh = actor.neutral;
-      mesh.V = recon_.frames[i];
-      panels.push_back(RenderMesh(mesh, render));
-      labels.push_back("reconstruction");
-      const auto err = vertex_error_.find(frame.frame);
-      if (err != vertex_error_.end()) {
-        panels.push_back(RenderMeshScalars(mesh, err->second, 0, options_.error_max_mm,
-                                           ColorMap::kViridis, render));
-        labels.push_back(fmt::format("error, 0-{} mm", options_.error_max_mm));
-      }
-      rows.push_back(ComposeLabelledPanels(panels, labels));
+    } catch (const InputError& e) {
+      summary_.warnings.push_back({"report", std::string("no contact sheet: ") + e.what(), {}, {}});
+      return;
     }
-  } catch (const InputError& e) {
-    summary_.warnings.push_back({"report", std::string("no contact sheet: ") + e.what(), {}, {}});
-    return;
+  }
+  std::vector<cv::Mat> rows;
+  MeshRenderOptions render;
+  render.height = options_.mesh_px;
+  render.width = options_.mesh_px * 4 / 5;
+  for (auto& [f, panels] : footage_panels) {
+    std::vector<std::string> labels;
+    for (const std::string& name : names) labels.push_back(fmt::format("frame {} {}", f, name));
+    const int i = f - recon_.start_frame;
+    TriMesh mesh = actor.neutral;
+    mesh.V = recon_.frames[i];
+    panels.push_back(RenderMesh(mesh, render));
+    labels.push_back("reconstruction");
+    const auto err = vertex_error_.find(f);
+    if (err != vertex_error_.end()) {
+      panels.push_back(RenderMeshScalars(mesh, err->second, 0, options_.error_max_mm,
+                                         ColorMap::kViridis, render));
+      labels.push_back(fmt::format("error, 0-{} mm", options_.error_max_mm));
+    }
+    rows.push_back(ComposeLabelledPanels(panels, labels));
   }
   if (rows.empty()) return;
   int width = 0;

@@ -45,7 +45,12 @@ void RunOptions::Register(OptionFields* fields) {
   fields->Add("calibrate", &calibrate,
               "refine the rig from the helmet tags (false: use --calibration as it is)");
   fields->Add("export", &export_formats,
-              "mesh formats beside solve/mesh.pc2: usda, mdd, obj (comma-separated; \"\" = none)");
+              "mesh formats beside solve/mesh.pc2, which is always written: usda, mdd, obj "
+              "(comma-separated; \"\" = none, the default: ASCII USDA is ~3x the pc2's size)");
+  fields->Add("diagnostics", &diagnostics,
+              "solve/diagnostics.json: summary (per frame, each observed bundle's status and "
+              "residual) or full (every bundle's shapes and weights too, ~50x larger)")
+      .OneOf({"summary", "full"});
   fields->Add("rays", &rays,
               "the solve uses triangulate's rays.csv, the markers seen by one camera (docs/method.md, "
               "\"Constraints after the solve\": on tracked footage they can cost accuracy)");
@@ -208,6 +213,13 @@ class Pipeline {
     return work_.StageDir(stage) / file;
   }
   std::vector<std::string> FootageFlags() const;
+  // Whether the run config's solve section sets robust.take.
+  bool SolveSectionSetsTake() const {
+    const auto section = config_.find("solve");
+    if (section == config_.end()) return false;
+    const YAML::Node solve = YAML::Load(section->second);
+    return solve.IsMap() && solve["robust"] && solve["robust"].IsMap() && solve["robust"]["take"];
+  }
   void AddFootageInputs(StageKey* key) const;
   // `--fps F` for the solve and the exports: the run's `fps` if set, else
   // the footage's frame rate (none for an image sequence, which declares
@@ -411,15 +423,28 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       key.AddInput("calibration", calibration);
     }
     key.AddInputText("actor", actor_hash_);
+    // The footage is one continuous recording: its frames are a take by
+    // construction, so the solve's temporal steps run whatever the markers'
+    // lag-1 correlation says of a short or quiet clip (issue 46, item 4:
+    // a continuous 24-frame clip at 0.42 had them off, said only in the
+    // info log), unless the run config's solve section decides
+    // (robust.take; docs/method.md, "Takes").
+    const bool take_given = SolveSectionSetsTake();
+    if (!take_given) key.AddInputText("take", "footage");
     key.AddInputText("export", options_.export_formats);
+    // Added only when not the default, so that a workspace solved before
+    // the option existed keeps its solve stage.
+    if (options_.diagnostics != "summary") key.AddInputText("diagnostics", options_.diagnostics);
     key.AddInputText("fps", fmt::format("{}", options_.fps));
-    plan.run = [this, rays, calibration](const fs::path& dir) {
+    plan.run = [this, rays, calibration, take_given](const fs::path& dir) {
       std::vector<std::string> args = {"solve", "--actor", input_.actor, "--bundles",
                                        Out("stabilize", "bundles.csv").string(), "--out",
                                        (dir / "mesh.pc2").string(), "--diagnostics",
-                                       (dir / "diagnostics.json").string(), "--topology",
+                                       (dir / "diagnostics.json").string(), "--diagnostics_detail",
+                                       options_.diagnostics, "--topology",
                                        (dir / "neutral.obj").string()};
       if (actor_has_jaw_) args.insert(args.end(), {"--jaw", Out("jaw", "jaw.csv").string()});
+      if (!take_given) args.insert(args.end(), {"--robust.take", "yes"});
       // The actor's units fitted to the solved meshes (docs/method.md,
       // "Animation curves"): the animators' controls; the USD rig with the
       // meshes' USD export.
@@ -443,6 +468,21 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       nlohmann::json report = RunCommand("solve", args, dir);
       if (rays) report["rays"] = DiagnosticsHeaderField(dir / "diagnostics.json", "rays");
       report["unit_fit"] = DiagnosticsHeaderField(dir / "diagnostics.json", "unit_fit");
+      // Whether the temporal steps ran, in the summary, and as a warning
+      // of the report (and the day report) when they did not.
+      const nlohmann::json method = DiagnosticsHeaderField(dir / "diagnostics.json", "report");
+      if (method.is_object() && method.contains("take")) {
+        const double correlation = method.value("take_correlation", 0.0);
+        report["take"] = {{"take", method.value("take", 0.0) == 1.0},
+                          {"lag1_correlation", correlation}};
+        if (method.value("take", 0.0) != 1.0) {
+          report["warnings"] = {fmt::format(
+              "the frames were not treated as a take (the markers' lag-1 correlation {:.2f}, "
+              "robust.take as the run config sets it): the temporal steps (3b, 3c and step 5's "
+              "averaging) were off; for a continuous clip set robust: take: yes",
+              correlation)};
+        }
+      }
       for (const std::string& format : ExportFormats(options_.export_formats)) {
         const fs::path target = dir / (format == "obj" ? "mesh_obj" : "mesh." + format);
         std::vector<std::string> convert = {"convert", (dir / "mesh.pc2").string(),

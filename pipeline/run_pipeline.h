@@ -35,7 +35,11 @@ struct RunOptions {
   FootageOptions footage;
   int reference_frame = 0;  // frame where the actor is near neutral, for track (0 = track's own default)
   bool calibrate = true;    // refine the rig from the helmet tags; false: use --calibration as it is
-  std::string export_formats = "usda";  // mesh formats written beside solve/mesh.pc2: usda, mdd, obj (comma-separated; "" = none)
+  // Mesh formats written beside solve/mesh.pc2: usda, mdd, obj
+  // (comma-separated; "" = none). None by default: mesh.pc2 (float32, the
+  // compact one) is always written; ASCII USDA is ~3x its size (issue 46).
+  std::string export_formats;
+  std::string diagnostics = "summary";  // solve/diagnostics.json: summary (per frame and observed bundle) or full (every bundle's shapes and weights)
   DayMarkersOptions day;    // markers: the day's markers, passed to every stage that loads the actor
   bool rays = false;        // the solve uses triangulate's rays.csv (markers seen by one camera; docs/method.md, "Constraints after the solve")
   double fps = 0;           // frame rate of the mesh caches (frames/s; 0 = the video's own, or the commands' 30 for an image sequence, which declares none)

@@ -122,7 +122,7 @@ TEST(RunPipelineTest, RunsEveryStageOnceThenKeepsWhatIsComplete) {
   const RunSummary first = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
   EXPECT_EQ(commands.calls,
             (std::vector<std::string>{"calibrate", "track", "triangulate", "stabilize", "jaw",
-                                      "solve", "convert", "report"}));
+                                      "solve", "report"}));
   for (const std::string& stage : PipelineStages()) {
     EXPECT_TRUE(fs::is_regular_file(fs::path(fx.input.out) / stage / "summary.json")) << stage;
   }
@@ -140,7 +140,7 @@ TEST(RunPipelineTest, AnActorWithoutAJawRigSkipsTheJawStage) {
   const RunSummary s = RunPipeline(fx.input, RunOptions{}, std::ref(commands));
   EXPECT_EQ(commands.calls,
             (std::vector<std::string>{"calibrate", "track", "triangulate", "stabilize", "solve",
-                                      "convert", "report"}));
+                                      "report"}));
   EXPECT_EQ(Statuses(s)[4], "jaw:skipped");
   const nlohmann::json summary = nlohmann::json::parse(
       ReadFile(fs::path(fx.input.out) / "jaw" / "summary.json"));
@@ -178,7 +178,7 @@ TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {
   commands.calls.clear();
   RunPipeline(fx.input, RunOptions{}, std::ref(commands));
   EXPECT_EQ(commands.calls, (std::vector<std::string>{"triangulate", "stabilize", "jaw", "solve",
-                                                      "convert", "report"}));
+                                                      "report"}));
   EXPECT_TRUE(fs::exists(fs::path(fx.input.out) / "triangulate" / "run_config.yaml"));
   // New footage: the stages that read it are redone; the fake's outputs
   // do not depend on the pixels, so the stages after them are kept (the
@@ -195,7 +195,9 @@ TEST(RunPipelineTest, AChangedInputOrOptionRedoesItsStageAndWhatDependsOnIt) {
 TEST(RunPipelineTest, TheRunsFrameRateReachesTheSolveAndTheExports) {
   Fixture fx;
   FakeCommands commands;
-  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  RunOptions usda;  // the default exports none beside mesh.pc2 (issue 46)
+  usda.export_formats = "usda";
+  RunPipeline(fx.input, usda, std::ref(commands));
   const std::vector<std::string>& solve = commands.args_of.at("solve");
   EXPECT_EQ(std::find(solve.begin(), solve.end(), "--fps"), solve.end());
   // The exports get the default rate spelt out (convert warns without one).
@@ -204,7 +206,7 @@ TEST(RunPipelineTest, TheRunsFrameRateReachesTheSolveAndTheExports) {
   ASSERT_NE(rate, convert.end());
   ASSERT_NE(rate + 1, convert.end());
   EXPECT_EQ(*(rate + 1), "30");
-  RunOptions options;
+  RunOptions options = usda;
   options.fps = 60;
   commands.calls.clear();
   RunPipeline(fx.input, options, std::ref(commands));
@@ -218,6 +220,33 @@ TEST(RunPipelineTest, TheRunsFrameRateReachesTheSolveAndTheExports) {
   }
   options.fps = -1;
   EXPECT_FALSE(options.Check());
+}
+
+// Issue 46: footage is one continuous recording, so the run's solve treats
+// its frames as a take (--robust.take yes) unless the run config's solve
+// section decides; the diagnostics' detail reaches the solve, and a change
+// of it redoes the solve (and the report) only.
+TEST(RunPipelineTest, TheSolveTreatsFootageAsATakeUnlessTheConfigDecides) {
+  Fixture fx;
+  FakeCommands commands;
+  RunPipeline(fx.input, RunOptions{}, std::ref(commands));
+  auto value_of = [&](const std::string& flag) {
+    const std::vector<std::string>& solve = commands.args_of.at("solve");
+    const auto it = std::find(solve.begin(), solve.end(), flag);
+    return it == solve.end() || it + 1 == solve.end() ? std::string("(none)") : *(it + 1);
+  };
+  EXPECT_EQ(value_of("--robust.take"), "yes");
+  EXPECT_EQ(value_of("--diagnostics_detail"), "summary");
+  RunOptions full;
+  full.diagnostics = "full";
+  commands.calls.clear();
+  RunPipeline(fx.input, full, std::ref(commands));
+  EXPECT_EQ(commands.calls, (std::vector<std::string>{"solve", "report"}));
+  EXPECT_EQ(value_of("--diagnostics_detail"), "full");
+  WriteFileAtomic(fx.dir.path() / "run.yaml", "solve:\n  robust:\n    take: auto\n");
+  fx.input.config = (fx.dir.path() / "run.yaml").string();
+  RunPipeline(fx.input, full, std::ref(commands));
+  EXPECT_EQ(value_of("--robust.take"), "(none)");
 }
 
 // Issue 52: what every stage that reads the footage shares is set once for
@@ -287,7 +316,7 @@ TEST(RunPipelineTest, FromAndToChooseTheStages) {
   options.from = "track";
   RunPipeline(fx.input, options, std::ref(commands));
   EXPECT_EQ(commands.calls.front(), "track");  // calibrate kept, track forced
-  EXPECT_EQ(commands.calls.size(), 7u);
+  EXPECT_EQ(commands.calls.size(), 6u);
 }
 
 TEST(RunPipelineTest, AnInterruptedRunResumesToTheSameOutputs) {

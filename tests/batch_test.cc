@@ -64,7 +64,7 @@ TEST_F(BatchTest, BadTakesFailWithTheirReasonTheOthersFinishAndCompleteTakesAreK
   const nlohmann::json diagnostics = ReadJson(day / "good" / "solve" / "diagnostics.json");
   EXPECT_EQ(diagnostics["index"]["from_cache"], true) << diagnostics["index"].dump();
   EXPECT_NE(ReadFile(day / "logs" / "index.log").find("built in"), std::string::npos);
-  EXPECT_TRUE(fs::is_regular_file(day / "good" / "solve" / "mesh.usda"));
+  EXPECT_TRUE(fs::is_regular_file(day / "good" / "solve" / "mesh.pc2"));
 
   // Again: the complete take is kept (not started again), the failed ones
   // are retried.

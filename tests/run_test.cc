@@ -109,7 +109,9 @@ TEST_F(RunTest, ABadConfigIsRefusedBeforeAnyStageRunsNamingTheUsersFileAndLine) 
 TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
   const fs::path& d = *dir_;
   const fs::path work = d / "work";
-  const CliResult run = RunHmc(RunArgs(d / "shot", work), d);
+  // The USDA export on request (the default writes only mesh.pc2).
+  const std::string args = RunArgs(d / "shot", work) + " --export usda";
+  const CliResult run = RunHmc(args, d);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   for (const char* stage : {"calibrate", "track", "triangulate", "stabilize", "jaw", "solve",
                             "report"}) {
@@ -153,7 +155,7 @@ TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
 
   // A second run keeps every stage.
   const auto before = DataFiles(work);
-  const CliResult again = RunHmc(RunArgs(d / "shot", work), d);
+  const CliResult again = RunHmc(args, d);
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_EQ(again.err.find("hmc track"), std::string::npos) << again.err;
   EXPECT_NE(again.err.find("track complete"), std::string::npos) << again.err;
@@ -164,7 +166,7 @@ TEST_F(RunTest, FootageToMeshAgainstTheTruthAndResume) {
   // "solve complete" with no mesh, or "cannot read the file to hash it").
   for (const std::string file : {"solve/mesh.pc2", "track/tracks_2d.csv"}) {
     fs::remove(work / file);
-    const CliResult repaired = RunHmc(RunArgs(d / "shot", work), d);
+    const CliResult repaired = RunHmc(args, d);
     ASSERT_EQ(repaired.exit_code, 0) << file << ": " << repaired.err;
     EXPECT_NE(repaired.err.find((work / file).string() + " is missing"), std::string::npos)
         << repaired.err;
@@ -178,6 +180,31 @@ TEST_F(RunTest, EachStageAloneGivesTheSameBytes) {
   const fs::path& d = *dir_;
   const fs::path work = d / "work_alone";
   ASSERT_EQ(RunHmc(RunArgs(d / "shot", work), d).exit_code, 0);
+  // The default outputs are the compact ones (issue 46): no USDA, and the
+  // diagnostics per frame with each observed bundle's status and residual
+  // only, which is what the report and the review read.
+  EXPECT_FALSE(fs::exists(work / "solve" / "mesh.usda"));
+  EXPECT_FALSE(fs::exists(work / "solve" / "unit_rig.usda"));
+  const nlohmann::json diag = nlohmann::json::parse(ReadFile(work / "solve" / "diagnostics.json"));
+  EXPECT_EQ(diag["detail"], "summary");
+  ASSERT_EQ(diag["frames"].size(), static_cast<size_t>(kFrames));
+  for (const auto& frame : diag["frames"]) {
+    int measured = 0;
+    double largest = 0.0;
+    for (const auto& b : frame["bundles"]) {
+      EXPECT_EQ(b.size(), 3u) << b.dump();
+      EXPECT_NE(b["status"], "filled");
+      ++measured;
+      largest = std::max(largest, b["residual_mm"].get<double>());
+    }
+    EXPECT_EQ(measured, frame["inside"].get<int>() + frame["projected"].get<int>());
+    EXPECT_EQ(largest, frame["residual_max_mm"].get<double>());
+  }
+  // Footage is a take: the run's solve runs its temporal steps whatever
+  // the correlation of a short clip says (issue 46, item 4), and says so.
+  const nlohmann::json solve_summary = nlohmann::json::parse(ReadFile(work / "solve" / "summary.json"));
+  EXPECT_EQ(solve_summary["report"]["take"]["take"], true) << solve_summary.dump();
+  EXPECT_EQ(diag["report"]["take"].get<double>(), 1.0);
   const fs::path alone = d / "alone";
   fs::create_directories(alone);
   const std::string actor = (d / "actor").string();
@@ -199,8 +226,9 @@ TEST_F(RunTest, EachStageAloneGivesTheSameBytes) {
                    (work / "stabilize" / "bundles.csv").string(), actor,
                    (alone / "jaw.csv").string()),
        {{work / "jaw" / "jaw.csv", alone / "jaw.csv"}}},
+      // The run passes --robust.take yes: footage is a take (issue 46).
       {fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' --rays '{}' "
-                   "--head_from_helmet '{}' --calibration '{}'",
+                   "--head_from_helmet '{}' --calibration '{}' --robust.take yes",
                    actor, (work / "stabilize" / "bundles.csv").string(),
                    (work / "jaw" / "jaw.csv").string(), (alone / "mesh.pc2").string(),
                    (work / "triangulate" / "rays.csv").string(),

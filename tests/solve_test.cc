@@ -77,7 +77,7 @@ TEST_P(SolveCli, VerificationThroughTheCli) {
 
   const CliResult solve = RunHmc(
       fmt::format("solve --actor '{}' --bundles '{}' --jaw '{}' --out '{}' "
-                  "--diagnostics '{}' {}",
+                  "--diagnostics '{}' --diagnostics_detail full {}",
                   (dir / "actor").string(), (dir / "bundles.csv").string(),
                   (dir / "jaw.csv").string(), (dir / "out" / "mesh.pc2").string(),
                   (dir / "out" / "diagnostics.json").string(), common),
@@ -117,6 +117,8 @@ TEST_P(SolveCli, VerificationThroughTheCli) {
     EXPECT_GE(b["candidates"].get<int>(), 1);
     EXPECT_EQ(b["shapes"].size(), b["weights"].size());
   }
+  EXPECT_EQ(diag["detail"], "full");
+  EXPECT_EQ(diag["frames"][0]["inside"].get<size_t>(), actor.markers.size());
 
   // Changed index options: the package's cache does not fit, so the solve
   // builds the model, writes it to the user cache and leaves the package
@@ -223,6 +225,64 @@ TEST_P(SolveMethodCli, EveryMethodSameInputsAndOutputs) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, SolveMethodCli, ::testing::Values(1, 2));
+
+// Issue 46, item 4: robust.take auto never turns the temporal steps off
+// silently. Frames alternating between two dataset shapes (unrelated from
+// one frame to the next: lag-1 correlation near -1) are judged not a take,
+// with a warning that says how to decide it; a continuous ramp from the
+// neutral to a shape is a take, without one; --robust.take yes decides
+// for the first without a warning.
+TEST(SolveTakeCli, NotATakeIsWarnedAbout) {
+  const fs::path dir = FreshTestDir("hmc_solve_take_test", 1);
+  const Actor actor = WriteSmallActor(dir, 1, 96, 80);
+  std::vector<int> still;  // shapes without a jaw pose
+  for (size_t n = 0; n < actor.shapes.size() && still.size() < 2; ++n) {
+    const JawPose& j = actor.shapes[n].jaw;
+    if (j.open_deg == 0 && j.lateral_deg == 0 && j.protrude_mm == 0) still.push_back(static_cast<int>(n));
+  }
+  ASSERT_EQ(still.size(), 2u);
+  const int F = 12;
+  auto frames_of = [&](bool alternate) {
+    std::vector<BundleFrame> frames;
+    for (int f = 0; f < F; ++f) {
+      const MatX3d x = alternate ? actor.ShapePositions(still[f % 2])
+                                 : MatX3d(actor.neutral.V + (f + 1.0) / F *
+                                                                (actor.ShapePositions(still[0]) -
+                                                                 actor.neutral.V));
+      BundleFrame b;
+      b.frame = f + 1;
+      for (const Marker& m : actor.markers) {
+        b.bundles[m.name] = EvaluateSurfacePoint(m.point, actor.neutral.F, x);
+      }
+      frames.push_back(b);
+    }
+    return frames;
+  };
+  struct Case {
+    const char* name;
+    bool alternate;
+    const char* flags;
+    bool take;
+  };
+  for (const Case& c : {Case{"alternating", true, "", false}, Case{"ramp", false, "", true},
+                        Case{"alternating_yes", true, "--robust.take yes", true}}) {
+    SCOPED_TRACE(c.name);
+    const fs::path out = dir / c.name;
+    WriteBundlesCsv(dir / (std::string(c.name) + ".csv"), frames_of(c.alternate));
+    const CliResult solve = RunHmc(
+        fmt::format("solve --actor '{}' --bundles '{}' --out '{}' --diagnostics '{}' "
+                    "--nn.uv_resolution 512 {}",
+                    (dir / "actor").string(), (dir / (std::string(c.name) + ".csv")).string(),
+                    (out / "mesh.pc2").string(), (out / "diagnostics.json").string(), c.flags),
+        dir);
+    ASSERT_EQ(solve.exit_code, 0) << solve.err;
+    const nlohmann::json diag = nlohmann::json::parse(ReadFile(out / "diagnostics.json"));
+    EXPECT_EQ(diag["report"]["take"].get<double>(), c.take ? 1.0 : 0.0)
+        << diag["report"]["take_correlation"];
+    EXPECT_EQ(solve.err.find("judged not a take") != std::string::npos, !c.take) << solve.err;
+  }
+  if (!HasFailure()) fs::remove_all(dir);
+}
 
 }  // namespace
 }  // namespace hmc
