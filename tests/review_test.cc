@@ -269,5 +269,60 @@ TEST_F(ReviewTest, AnAbsentMarkerRenamedOnOneFrameIsTrackedOnTheFramesAfter) {
   EXPECT_NE(bad.err.find("nose_tip_zz"), std::string::npos) << bad.err;
 }
 
+// `unname` takes the name off a dot from its frame on: the tracker follows
+// the dot and names it no more (left as it was, the tracker would re-acquire
+// the marker on it the next frames) until a later fix names it; the other
+// markers' rows stay.
+TEST_F(ReviewTest, UnnamedDotsStayUnnamedUntilAFixNamesThem) {
+  const fs::path& d = *dir_;
+  const std::vector<Track2d> before = ReadTracks2dCsv(d / "tracks_unfixed.csv");
+  std::map<std::string, int> count;
+  for (const Track2d& t : before) count[t.camera + "/" + t.marker] += 1;
+  // Up to 8 markers named in cam0 on every frame, their dots well apart
+  // from the others.
+  std::vector<std::string> markers;
+  for (const Track2d& t : RowsAt(before, 1, "cam0")) {
+    if (count["cam0/" + t.marker] != kFrames || markers.size() == 8) continue;
+    double nearest = 1e9;
+    for (const Track2d& o : RowsAt(before, 1, "cam0")) {
+      if (o.marker != t.marker) nearest = std::min(nearest, (o.pixel - t.pixel).norm());
+    }
+    if (nearest > 15) markers.push_back(t.marker);
+  }
+  ASSERT_GE(markers.size(), 4u);
+  std::map<std::string, std::map<int, Vec2>> where;
+  for (const Track2d& t : before) {
+    if (t.camera == "cam0") where[t.marker][t.frame] = t.pixel;
+  }
+  std::string csv = "frame,camera,marker,action,x,y,to\n";
+  for (const std::string& m : markers) {
+    csv += fmt::format("2,cam0,{},unname,,,\n5,cam0,,rename,{:.3f},{:.3f},{}\n", m, where[m][5].x(),
+                       where[m][5].y(), m);
+  }
+  const fs::path fixes = d / "unname_fixes.csv";
+  WriteFileAtomic(fixes, csv);
+  const fs::path out = d / "unnamed" / "tracks_2d.csv";
+  const CliResult r = RunHmc(
+      fmt::format("track --shot '{}' --calibration '{}' --actor '{}' --out '{}' --fixes '{}'",
+                  (d / "shot").string(), (d / "work" / "calibrate" / "calibration.yaml").string(),
+                  (d / "actor").string(), out.string(), fixes.string()),
+      d);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::vector<Track2d> after = ReadTracks2dCsv(out);
+  for (int f = 1; f <= kFrames; ++f) {
+    const bool barred = f >= 2 && f < 5;
+    for (const std::string& m : markers) {
+      bool named = false;
+      for (const Track2d& t : RowsAt(after, f, "cam0")) {
+        if ((t.pixel - where[m][f]).norm() < 1e-3) {
+          named = true;
+          EXPECT_EQ(t.marker, m) << "frame " << f;
+        }
+      }
+      EXPECT_EQ(named, !barred) << m << "'s dot at frame " << f;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace hmc

@@ -94,12 +94,16 @@ const hmcReview = (function () {
     for (let j = 0; j < raw.length; j += 4) {
       dots.push({ marker: names[raw[j]], x: raw[j + 1], y: raw[j + 2], state: raw[j + 3], fixed: false });
     }
-    const absent = new Set();
+    // absent: the marker from its frame on; unnamed: the dot from its
+    // frame on, which the tracker follows -- previewed as the dot that
+    // marker holds in the run's tracks (docs/review.md).
+    const absent = new Set(), unnamed = new Set();
     for (const f of S.fixes) {
       if (f.camera !== camName || f.frame > frame) continue;
       if (f.action === 'absent') absent.add(f.marker);
-      if (f.action === 'rename') absent.delete(f.to);
-      if (f.action === 'move') absent.delete(f.marker);
+      if (f.action === 'rename') { absent.delete(f.to); unnamed.delete(f.to); }
+      if (f.action === 'move') { absent.delete(f.marker); unnamed.delete(f.marker); }
+      if (f.action === 'unname' && f.marker && f.frame < frame) unnamed.add(f.marker);
       if (f.frame !== frame) continue;
       const d = dots.find((o) => o.marker === f.marker && (f.x === null || Math.hypot(o.x - f.x, o.y - f.y) < 1e-2)) ||
                 dots.find((o) => f.x !== null && Math.hypot(o.x - f.x, o.y - f.y) < 1e-2);
@@ -115,7 +119,7 @@ const hmcReview = (function () {
         else dots.push({ marker: f.marker, x: f.x, y: f.y, state: 0, fixed: true });
       }
     }
-    return dots.filter((o) => !absent.has(o.marker));
+    return dots.filter((o) => !absent.has(o.marker) && !(unnamed.has(o.marker) && !o.fixed));
   }
 
   // ---------- cameras ----------
