@@ -687,7 +687,9 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
 int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
                             const std::vector<int>& detection_of) const {
   if (fix.has_pixel) {
-    const double gate = std::max(3.0, dot_size_px_[c]);
+    // Within the dot: a move's point may lie beside a neighbour's dot (a
+    // partly hidden dot the detector missed), which it must not take.
+    const double gate = std::max(3.0, 0.5 * dot_size_px_[c]);
     int best = -1;
     double best_d = gate;
     for (size_t d = 0; d < detections.size(); ++d) {

@@ -301,8 +301,9 @@ class MarkerTracker {
   // position), then the nearest detection within half a dot diameter.
   std::vector<int> FollowBarred(int c, const std::vector<cv::Mat>& pyramid,
                                 const std::vector<DotDetection>& detections) const;
-  // The detection a fix points at: the nearest to its pixel within the
-  // dot's size (at least 3 px), else the one its marker holds; -1: none.
+  // The detection a fix points at: the nearest to its pixel within half
+  // the dot's size (at least 3 px), else (not a move) the one its marker
+  // holds; -1: none.
   int FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
                const std::vector<int>& detection_of) const;
 
