@@ -11,7 +11,7 @@ const hmcReview = (function () {
   const STATE_COLOURS = ['#3ddc5a', '#ffa028', '#3cc8ff', '#ff3c3c'];
   const FIXED_COLOUR = '#ff4cff';
   const S = {
-    meta: null, topology: null, chunks: new Map(), loading: new Map(),
+    meta: null, topology: null, chunks: new Map(), loading: new Map(), inflating: new Map(),
     index: 0, playing: false, timer: null, images: [], cams: [],
     fixes: [], selected: null, drag: null, three: null, errors: [],
     firstRender: null, testMode: /[?&]test=(1|open)/.test(location.search),
@@ -38,7 +38,9 @@ const hmcReview = (function () {
     if (k < 0 || k >= S.meta.chunks) return Promise.resolve();
     if (S.chunks.has(k)) return Promise.resolve();
     if (!S.loading.has(k)) {
-      S.loading.set(k, loadScript('data/chunk_' + String(k).padStart(5, '0') + '.js'));
+      // The script calls chunk(), which inflates the meshes: done when both are.
+      S.loading.set(k, loadScript('data/chunk_' + String(k).padStart(5, '0') + '.js')
+        .then(() => S.inflating.get(k)).finally(() => S.inflating.delete(k)));
     }
     return S.loading.get(k);
   }
@@ -628,21 +630,32 @@ const hmcReview = (function () {
   // One chunk of frames: per frame its tracks (per camera a flat list of
   // marker, x, y, state), bundles (marker, x, y, z, residual, outside) and
   // the mesh record in the chunk's binary (docs/formats.md, "Review").
+  // The binary is deflated (zlib): the browser's DecompressionStream
+  // inflates it; the chunk is shown once it is.
+  function inflate(buffer) {
+    const stream = new Blob([buffer]).stream().pipeThrough(new DecompressionStream('deflate'));
+    return new Response(stream).arrayBuffer();
+  }
   function chunk(k, frames, meshBase64) {
     const V = S.meta.mesh ? S.meta.mesh.vertices : 0;
-    const buf = meshBase64 ? decodeBase64(meshBase64) : null;
-    let offset = 0;
-    for (const f of frames) {
-      if (!f.has_mesh || !buf) continue;
-      const scale = new DataView(buf, offset, 4).getFloat32(0, true);
-      const displacement = new Int16Array(buf, offset + 4, 3 * V);
-      offset += 4 + 6 * V;
-      let error = null;
-      if (S.meta.mesh.has_error) { error = new Uint8Array(buf, offset, V); offset += V; }
-      offset = (offset + 3) & ~3;
-      f.mesh = { scale, displacement, error };
-    }
-    S.chunks.set(k, { frames });
+    const inflated = meshBase64 ? inflate(decodeBase64(meshBase64)) : Promise.resolve(null);
+    S.inflating.set(k, inflated.then((buf) => {
+      let offset = 0;
+      for (const f of frames) {
+        if (!f.has_mesh || !buf) continue;
+        const scale = new DataView(buf, offset, 4).getFloat32(0, true);
+        // int16 as two byte planes: the low bytes, then the high.
+        const low = new Uint8Array(buf, offset + 4, 3 * V), high = new Uint8Array(buf, offset + 4 + 3 * V, 3 * V);
+        const displacement = new Int16Array(3 * V);
+        for (let j = 0; j < 3 * V; ++j) displacement[j] = low[j] | (high[j] << 8);
+        offset += 4 + 6 * V;
+        let error = null;
+        if (S.meta.mesh.has_error) { error = new Uint8Array(buf, offset, V); offset += V; }
+        offset = (offset + 3) & ~3;
+        f.mesh = { scale, displacement, error };
+      }
+      S.chunks.set(k, { frames });
+    }).catch((e) => { S.errors.push('cannot inflate chunk ' + k + ': ' + e); }));
   }
 
   // ---------- test mode (?test=1): scripted checks, results in the DOM ----------
