@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/file_util.h"
+#include "core/mesh_sequence.h"
 #include "core/types.h"
 #include "core/tracks_2d.h"
 #include "tests/cli_runner.h"
@@ -125,6 +126,19 @@ TEST_F(ReviewTest, ThePageWorksInARealBrowserAndItsFixesApply) {
   const int b = 1 + kFrames / 2;
   EXPECT_EQ(r["footage_sources"], nlohmann::json({fmt::format("cam0/{:06d}.jpg", b), fmt::format("cam1/{:06d}.jpg", b)}));
   EXPECT_GT(r["mesh_max_move_mm"].get<double>(), 0.01);
+  // The mesh the page drew is the solve's, within the chunks' rounding (at
+  // most 1 um: docs/formats.md, "Review page") and float32's.
+  const MeshSequence solved = ReadMeshSequence(work / "solve" / "mesh.pc2");
+  const nlohmann::json& sample = r["mesh_sample"];
+  ASSERT_EQ(sample["frame"].get<int>(), b);
+  const MatX3d& mesh_b = solved.frames.at(b - solved.start_frame);
+  ASSERT_EQ(sample["vertices"].size(), 50u);
+  for (size_t i = 0; i < sample["vertices"].size(); ++i) {
+    const int v = sample["vertices"][i].get<int>();
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(sample["positions"][3 * i + c].get<double>(), mesh_b(v, c), 1.01e-3) << "vertex " << v;
+    }
+  }
   // The scripted rename: cam0's first dot at frame b is given the second
   // dot's name. The CSV it exports, predicted from the tracks.
   const std::vector<Track2d> tracks = ReadTracks2dCsv(d / "tracks_unfixed.csv");

@@ -690,6 +690,15 @@ const hmcReview = (function () {
         let move = 0;
         for (let j = 0; j < meshA.length; ++j) move = Math.max(move, Math.abs(S.three.positions[j] - meshA[j]));
         results.mesh_max_move_mm = move;
+        // 50 vertices of the mesh drawn, for the test to compare with the
+        // solve's mesh.pc2 (the chunks' decoding and rounding).
+        const V = S.meta.mesh.vertices, vertices = [], positions = [];
+        for (let k = 0; k < 50; ++k) {
+          const v = Math.floor(k * (V - 1) / 49);
+          vertices.push(v);
+          for (let c = 0; c < 3; ++c) positions.push(S.three.positions[3 * v + c]);
+        }
+        results.mesh_sample = { frame: S.three.shownFrame, vertices, positions };
       }
       // A scripted rename: the first dot of the first camera at frame b is
       // renamed to the marker that camera's second dot has.
