@@ -445,6 +445,7 @@ void ReviewWriter::WriteChunks() {
   const bool truth = has_mesh_ && IsFile(truth_file);
   summary_.has_truth = truth;
   const Eigen::Index V = neutral_.V.rows();
+  std::future<void> pending;
   for (int k = 0; k < num_chunks; ++k) {
     const int a = first_ + k * chunk, b = std::min(last_, a + chunk - 1);
     MeshSequence mesh, truth_mesh;
@@ -520,11 +521,18 @@ void ReviewWriter::WriteChunks() {
       }
     }
     frames += "]";
-    const std::string packed = Deflate(binary);
-    WriteScript(fmt::format("data/chunk_{:05d}.js", k),
-                fmt::format("hmcReview.chunk({},{},\"{}\");\n", k, frames,
-                            Base64Encode(packed.data(), packed.size())));
+    // Deflated and written beside the next chunk's reading (one at a
+    // time: WriteScript counts the bytes).
+    if (pending.valid()) pending.get();
+    pending = std::async(std::launch::async, [this, k, frames = std::move(frames),
+                                              binary = std::move(binary)]() {
+      const std::string packed = Deflate(binary);
+      WriteScript(fmt::format("data/chunk_{:05d}.js", k),
+                  fmt::format("hmcReview.chunk({},{},\"{}\");\n", k, frames,
+                              Base64Encode(packed.data(), packed.size())));
+    });
   }
+  if (pending.valid()) pending.get();
 }
 
 void ReviewWriter::WriteMeta() {
