@@ -516,6 +516,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   state_.assign(num_cameras, std::vector<DotState>(num_markers));
   absent_.assign(num_cameras, std::vector<char>(num_markers, 0));
   barred_.assign(num_cameras, {});
+  confused_.assign(num_cameras, {});
   dot_size_px_ = dot_size_px;
   pyramid_.assign(num_cameras, {});
   for (int c = 0; c < num_cameras; ++c) {
@@ -704,6 +705,26 @@ int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotD
   return fix.marker >= 0 ? detection_of[fix.marker] : -1;
 }
 
+void MarkerTracker::ResolveConfusions(int c, const std::vector<DotDetection>& detections,
+                                      std::vector<int>* detection_of) const {
+  std::optional<LayoutView> view;
+  for (const auto& [a, b] : confused_[c]) {
+    const int d = (*detection_of)[a];
+    if (d < 0 || (*detection_of)[b] >= 0 || absent_[c][b]) continue;
+    if (!view) view = ViewLayout(c, positions_);
+    std::vector<int> others = *detection_of;
+    others[a] = -1;
+    Vec2 at_a, at_b;
+    CorrectedProjection(a, *view, detections, others, &at_a);
+    CorrectedProjection(b, *view, detections, others, &at_b);
+    const Vec2 p = detections[d].pixel;
+    if ((p - at_b).norm() < (p - at_a).norm()) {
+      (*detection_of)[a] = -1;
+      (*detection_of)[b] = d;
+    }
+  }
+}
+
 std::vector<int> MarkerTracker::FollowBarred(int c, const std::vector<cv::Mat>& pyramid,
                                              const std::vector<DotDetection>& detections) const {
   const std::vector<Vec2>& from_px = barred_[c];
@@ -782,12 +803,22 @@ FixOutcome MarkerTracker::ApplyFixes(int c, const std::vector<TrackerFix>& fixes
     bar.erase(std::remove(bar.begin(), bar.end(), d), bar.end());  // a fix names it again
   };
   for (int d : bar) unname_dot(d);
+  ResolveConfusions(c, *detections, detection_of);
   for (size_t i = 0; i < fixes.size(); ++i) {
     const TrackerFix& fix = fixes[i];
     int d = fix.action == TrackFixAction::kAbsent ? -1 : FixedDot(c, fix, *detections, *detection_of);
     switch (fix.action) {
       case TrackFixAction::kRename:
-        if (d >= 0) give(fix.to, d);
+        if (d >= 0) {
+          for (int k = 0; k < static_cast<int>(detection_of->size()); ++k) {
+            const std::pair<int, int> pair(k, fix.to);
+            if ((*detection_of)[k] == d && k != fix.to &&
+                std::find(confused_[c].begin(), confused_[c].end(), pair) == confused_[c].end()) {
+              confused_[c].push_back(pair);
+            }
+          }
+          give(fix.to, d);
+        }
         break;
       case TrackFixAction::kUnname:
         if (d >= 0) {

@@ -69,6 +69,7 @@
 
 #include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -282,8 +283,10 @@ class MarkerTracker {
   // keeps the marker unnamed in this camera until a later rename or move
   // names it. A move to where no dot was detected adds the point as a
   // detection (score 1). First the barred dots `barred` (detection
-  // indices, -1: not found) lose their names; last every absent marker is
-  // unnamed. Leaves in barred_[c] the barred dots' positions.
+  // indices, -1: not found) lose their names, and the confusions fixed
+  // before are undone (ResolveConfusions); last every absent marker is
+  // unnamed. Leaves in barred_[c] the barred dots' positions. A rename of
+  // a dot marker A held to marker B records the confusion (A, B).
   FixOutcome ApplyFixes(int c, const std::vector<TrackerFix>& fixes, const std::vector<int>& barred,
                         std::vector<DotDetection>* detections, std::vector<int>* detection_of);
   // ApplyFixes for every camera present (no fixes: only the barred dots
@@ -295,6 +298,14 @@ class MarkerTracker {
       const std::vector<std::vector<TrackerFix>>* fixes,
       const std::vector<std::vector<int>>& barred, std::vector<FixOutcome>* outcome,
       std::vector<std::vector<DotDetection>>* storage, std::vector<std::vector<int>>* detection_of);
+  // A confusion a rename fixed, (A, B): marker A had taken B's dot. On a
+  // later frame where A holds a dot and B none, the dot goes to B if it is
+  // nearer B's place than A's (each marker's projection under the current
+  // pose, corrected by its named neighbours, the two taken out of each
+  // other's correction): the tracker's re-acquisition and flow repeat
+  // a confusion when B's dot is lost and found again (docs/review.md).
+  void ResolveConfusions(int c, const std::vector<DotDetection>& detections,
+                         std::vector<int>* detection_of) const;
   // Camera c's barred dots followed into the frame whose flow pyramid is
   // `pyramid`: per barred dot of barred_[c] the detection it is now (-1:
   // not found, the bar ends) -- its flow from the previous frame (else its
@@ -318,6 +329,8 @@ class MarkerTracker {
   // frame to frame and given no name until a fix names them or they are
   // not found.
   std::vector<std::vector<Vec2>> barred_;
+  // [camera]: the confusions (A, B) renames fixed (ResolveConfusions).
+  std::vector<std::vector<std::pair<int, int>>> confused_;
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
   std::vector<double> dot_size_px_;
   Rigid3 helmet_from_head_ = Rigid3::Identity();
