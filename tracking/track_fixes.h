@@ -6,7 +6,9 @@
 //
 //   frame,camera,marker,action,x,y,to
 //   rename  the dot of `marker` (or, with x,y, the detection nearest
-//           (x, y)) is marker `to`; `marker` may be empty (an unnamed dot)
+//           (x, y)) is marker `to`; `marker` may be empty (an unnamed dot);
+//           the confusion is kept fixed on the later frames
+//           (MarkerTracker::ResolveConfusions)
 //   unname  the dot of `marker` (or nearest (x, y)) has no name from this
 //           frame on: the tracker follows it and names it no more until a
 //           later fix names it (rename or move to it) or it is not found
