@@ -401,6 +401,16 @@ int RunTake(const fs::path& day, const BatchPlan& plan, const std::string& name,
     reason = e.what();
     code = 1;
   }
+  if (code == 0) {
+    // The take's review page (docs/review.md), linked from the day report;
+    // the take is done without it.
+    const std::string work = fs::absolute(day / name).lexically_normal().string();
+    try {
+      if (run_command({"review", "--work", work}) != 0) spdlog::warn("batch: take {}: no review page", name);
+    } catch (const std::exception& e) {
+      spdlog::warn("batch: take {}: no review page: {}", name, e.what());
+    }
+  }
   state["finished"] = NowUtc();
   state["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   state["state"] = code == 0 ? "done" : "failed";
@@ -495,6 +505,7 @@ nlohmann::json CollectBatch(const fs::path& day, const std::string& scheduler,
       }
     }
     const bool has_report = fs::is_regular_file(work / "report" / "report.html", ec);
+    const bool has_review = fs::is_regular_file(work / "review" / "index.html", ec);
     ++counts[s];
     takes.push_back({{"name", take.name},
                      {"shot", take.shot},
@@ -512,6 +523,7 @@ nlohmann::json CollectBatch(const fs::path& day, const std::string& scheduler,
                      {"figures", TakeFigures(work)},
                      {"warnings", warnings},
                      {"report", has_report ? take.name + "/report/report.html" : ""},
+                     {"review", has_review ? take.name + "/review/index.html" : ""},
                      {"thumbnail", thumbnail}});
   }
   return {{"stage", "batch"},   {"scheduler", scheduler}, {"actor", plan.actor},
@@ -532,11 +544,13 @@ void WriteDayFiles(const fs::path& day, const nlohmann::json& batch) {
     const std::string report = t["report"].get<std::string>();
     const std::string thumb = t["thumbnail"].get<std::string>();
     const std::string log = t["log"].get<std::string>();
+    const std::string review = t.value("review", "");
     rows += fmt::format(
-        "<tr class=\"{}\"><td>{}</td><td>{}<br>{}</td><td>{:.1f} s<br>{}</td><td>{}</td>"
+        "<tr class=\"{}\"><td>{}{}</td><td>{}<br>{}</td><td>{:.1f} s<br>{}</td><td>{}</td>"
         "<td><ul>{}</ul></td><td>{}</td></tr>\n",
         HtmlEscape(t["state"].get<std::string>()),
         report.empty() ? HtmlEscape(name) : fmt::format("<a href=\"{}\">{}</a>", report, HtmlEscape(name)),
+        review.empty() ? "" : fmt::format("<br><a href=\"{}\">review</a>", review),
         HtmlEscape(t["state"].get<std::string>()), HtmlEscape(t["reason"].get<std::string>()),
         t["seconds"].get<double>(), log.empty() ? "" : fmt::format("<a href=\"{}\">log</a>", log),
         figures, warnings,

@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
+#include <zlib.h>
 
 #include "core/calibration.h"
 #include "core/error.h"
@@ -411,6 +412,25 @@ void ReviewWriter::WriteTopology() {
                           Base64Encode(nearest.data(), nearest.size() * sizeof(uint16_t))));
 }
 
+// The smallest step of the mesh chunks' displacements (mm): 2 um, a
+// rounding of at most 1 um (docs/formats.md, "Review page"), far below
+// what the page can show, and a third of the size of the finest step.
+constexpr double kMeshStepMm = 0.002;
+
+// `data` deflated (zlib format, RFC 1950), which the page inflates with the
+// browser's DecompressionStream("deflate").
+std::string Deflate(const std::string& data) {
+  if (data.empty()) return data;
+  uLongf size = compressBound(static_cast<uLong>(data.size()));
+  std::string out(size, '\0');
+  if (compress2(reinterpret_cast<Bytef*>(out.data()), &size, reinterpret_cast<const Bytef*>(data.data()),
+                static_cast<uLong>(data.size()), 6) != Z_OK) {
+    throw std::runtime_error("review: zlib could not deflate a mesh chunk");
+  }
+  out.resize(size);
+  return out;
+}
+
 // One script per chunk of frames: per frame its tracks and bundles as
 // JSON, the meshes as one base64 binary (docs/formats.md, "Review page").
 void ReviewWriter::WriteChunks() {
@@ -425,6 +445,7 @@ void ReviewWriter::WriteChunks() {
   const bool truth = has_mesh_ && IsFile(truth_file);
   summary_.has_truth = truth;
   const Eigen::Index V = neutral_.V.rows();
+  std::future<void> pending;
   for (int k = 0; k < num_chunks; ++k) {
     const int a = first_ + k * chunk, b = std::min(last_, a + chunk - 1);
     MeshSequence mesh, truth_mesh;
@@ -468,17 +489,25 @@ void ReviewWriter::WriteChunks() {
       frames += fmt::format("{}{{\"frame\":{},\"has_mesh\":{},\"tracks\":{},\"bundles\":[{}]}}",
                             f == a ? "" : ",", f, has ? "true" : "false", tracks, bundles);
       if (!has) continue;
-      // int16 displacements from the neutral with the frame's own step.
+      // int16 displacements from the neutral in steps of the frame's
+      // largest over 32767, at least kMeshStepMm, as two byte planes (low
+      // bytes, then high: the high plane is nearly all 0 and 255, which
+      // deflate packs tight).
       const MatX3d d = mesh.frames[mi] - neutral_.V;
       const double max_abs = d.cwiseAbs().maxCoeff();
-      const float scale = static_cast<float>(max_abs > 0 ? max_abs / 32767 : 1e-6);
+      const float scale = static_cast<float>(std::max(kMeshStepMm, max_abs / 32767));
       const size_t at = binary.size();
       const size_t record = 4 + 6 * V + (truth ? V : 0);
       binary.resize(at + ((record + 3) & ~size_t(3)), '\0');
       std::memcpy(&binary[at], &scale, 4);
-      auto* q = reinterpret_cast<int16_t*>(&binary[at + 4]);
+      auto* low = reinterpret_cast<uint8_t*>(&binary[at + 4]);
+      uint8_t* high = low + 3 * V;
       for (Eigen::Index v = 0; v < V; ++v) {
-        for (int c = 0; c < 3; ++c) q[3 * v + c] = static_cast<int16_t>(std::lround(d(v, c) / scale));
+        for (int c = 0; c < 3; ++c) {
+          const auto q = static_cast<uint16_t>(static_cast<int16_t>(std::lround(d(v, c) / scale)));
+          low[3 * v + c] = static_cast<uint8_t>(q & 0xff);
+          high[3 * v + c] = static_cast<uint8_t>(q >> 8);
+        }
       }
       const int ti = f - truth_mesh.start_frame;
       if (truth) {
@@ -492,10 +521,18 @@ void ReviewWriter::WriteChunks() {
       }
     }
     frames += "]";
-    WriteScript(fmt::format("data/chunk_{:05d}.js", k),
-                fmt::format("hmcReview.chunk({},{},\"{}\");\n", k, frames,
-                            Base64Encode(binary.data(), binary.size())));
+    // Deflated and written beside the next chunk's reading (one at a
+    // time: WriteScript counts the bytes).
+    if (pending.valid()) pending.get();
+    pending = std::async(std::launch::async, [this, k, frames = std::move(frames),
+                                              binary = std::move(binary)]() {
+      const std::string packed = Deflate(binary);
+      WriteScript(fmt::format("data/chunk_{:05d}.js", k),
+                  fmt::format("hmcReview.chunk({},{},\"{}\");\n", k, frames,
+                              Base64Encode(packed.data(), packed.size())));
+    });
   }
+  if (pending.valid()) pending.get();
 }
 
 void ReviewWriter::WriteMeta() {

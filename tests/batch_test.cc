@@ -58,6 +58,12 @@ TEST_F(BatchTest, BadTakesFailWithTheirReasonTheOthersFinishAndCompleteTakesAreK
   EXPECT_LT(state["good"]["figures"]["truth_face_mean_mm"].get<double>(), 0.3);
   EXPECT_EQ(state["good"]["figures"]["frames"], kFrames);
   EXPECT_NE(page.find("href=\"good/report/report.html\""), std::string::npos);
+  // Its review page written by the take's process and linked; a failed take
+  // has none.
+  EXPECT_TRUE(fs::is_regular_file(day / "good" / "review" / "index.html"));
+  EXPECT_NE(page.find("href=\"good/review/index.html\""), std::string::npos);
+  EXPECT_EQ(state["good"]["review"], "good/review/index.html");
+  EXPECT_EQ(state["no_cam1"]["review"], "");
   EXPECT_NE(page.find("src=\"good/report/contact_sheet.png\""), std::string::npos);
   // The actor's index was built once, before the takes, and the take's
   // solve loaded it from the day's cache.

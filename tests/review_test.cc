@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/file_util.h"
+#include "core/mesh_sequence.h"
 #include "core/types.h"
 #include "core/tracks_2d.h"
 #include "tests/cli_runner.h"
@@ -116,7 +117,9 @@ TEST_F(ReviewTest, ThePageWorksInARealBrowserAndItsFixesApply) {
     for (size_t at; (at = text.find(entity)) != std::string::npos;) text.replace(at, entity.size(), c);
   }
   const nlohmann::json r = nlohmann::json::parse(text);
-  std::printf("page test: %s\n", r.dump().c_str());
+  nlohmann::json shown = r;
+  shown.erase("mesh_sample");
+  std::printf("page test: %s\n", shown.dump().c_str());
   EXPECT_TRUE(r["errors"].empty()) << r["errors"].dump();
   EXPECT_TRUE(r["first_render_ok"].get<bool>());
   ASSERT_TRUE(r["moved_ok"].get<bool>());
@@ -125,6 +128,19 @@ TEST_F(ReviewTest, ThePageWorksInARealBrowserAndItsFixesApply) {
   const int b = 1 + kFrames / 2;
   EXPECT_EQ(r["footage_sources"], nlohmann::json({fmt::format("cam0/{:06d}.jpg", b), fmt::format("cam1/{:06d}.jpg", b)}));
   EXPECT_GT(r["mesh_max_move_mm"].get<double>(), 0.01);
+  // The mesh the page drew is the solve's, within the chunks' rounding (at
+  // most 1 um: docs/formats.md, "Review page") and float32's.
+  const MeshSequence solved = ReadMeshSequence(work / "solve" / "mesh.pc2");
+  const nlohmann::json& sample = r["mesh_sample"];
+  ASSERT_EQ(sample["frame"].get<int>(), b);
+  const MatX3d& mesh_b = solved.frames.at(b - solved.start_frame);
+  ASSERT_EQ(sample["vertices"].size(), 50u);
+  for (size_t i = 0; i < sample["vertices"].size(); ++i) {
+    const int v = sample["vertices"][i].get<int>();
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(sample["positions"][3 * i + c].get<double>(), mesh_b(v, c), 1.01e-3) << "vertex " << v;
+    }
+  }
   // The scripted rename: cam0's first dot at frame b is given the second
   // dot's name. The CSV it exports, predicted from the tracks.
   const std::vector<Track2d> tracks = ReadTracks2dCsv(d / "tracks_unfixed.csv");
@@ -267,6 +283,61 @@ TEST_F(ReviewTest, AnAbsentMarkerRenamedOnOneFrameIsTrackedOnTheFramesAfter) {
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("absent_fixes.csv:2"), std::string::npos) << bad.err;
   EXPECT_NE(bad.err.find("nose_tip_zz"), std::string::npos) << bad.err;
+}
+
+// `unname` takes the name off a dot from its frame on: the tracker follows
+// the dot and names it no more (left as it was, the tracker would re-acquire
+// the marker on it the next frames) until a later fix names it; the other
+// markers' rows stay.
+TEST_F(ReviewTest, UnnamedDotsStayUnnamedUntilAFixNamesThem) {
+  const fs::path& d = *dir_;
+  const std::vector<Track2d> before = ReadTracks2dCsv(d / "tracks_unfixed.csv");
+  std::map<std::string, int> count;
+  for (const Track2d& t : before) count[t.camera + "/" + t.marker] += 1;
+  // Up to 8 markers named in cam0 on every frame, their dots well apart
+  // from the others.
+  std::vector<std::string> markers;
+  for (const Track2d& t : RowsAt(before, 1, "cam0")) {
+    if (count["cam0/" + t.marker] != kFrames || markers.size() == 8) continue;
+    double nearest = 1e9;
+    for (const Track2d& o : RowsAt(before, 1, "cam0")) {
+      if (o.marker != t.marker) nearest = std::min(nearest, (o.pixel - t.pixel).norm());
+    }
+    if (nearest > 15) markers.push_back(t.marker);
+  }
+  ASSERT_GE(markers.size(), 4u);
+  std::map<std::string, std::map<int, Vec2>> where;
+  for (const Track2d& t : before) {
+    if (t.camera == "cam0") where[t.marker][t.frame] = t.pixel;
+  }
+  std::string csv = "frame,camera,marker,action,x,y,to\n";
+  for (const std::string& m : markers) {
+    csv += fmt::format("2,cam0,{},unname,,,\n5,cam0,,rename,{:.3f},{:.3f},{}\n", m, where[m][5].x(),
+                       where[m][5].y(), m);
+  }
+  const fs::path fixes = d / "unname_fixes.csv";
+  WriteFileAtomic(fixes, csv);
+  const fs::path out = d / "unnamed" / "tracks_2d.csv";
+  const CliResult r = RunHmc(
+      fmt::format("track --shot '{}' --calibration '{}' --actor '{}' --out '{}' --fixes '{}'",
+                  (d / "shot").string(), (d / "work" / "calibrate" / "calibration.yaml").string(),
+                  (d / "actor").string(), out.string(), fixes.string()),
+      d);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::vector<Track2d> after = ReadTracks2dCsv(out);
+  for (int f = 1; f <= kFrames; ++f) {
+    const bool barred = f >= 2 && f < 5;
+    for (const std::string& m : markers) {
+      bool named = false;
+      for (const Track2d& t : RowsAt(after, f, "cam0")) {
+        if ((t.pixel - where[m][f]).norm() < 1e-3) {
+          named = true;
+          EXPECT_EQ(t.marker, m) << "frame " << f;
+        }
+      }
+      EXPECT_EQ(named, !barred) << m << "'s dot at frame " << f;
+    }
+  }
 }
 
 }  // namespace

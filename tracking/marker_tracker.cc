@@ -515,6 +515,8 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   std::vector<CameraFrameTracks> out(num_cameras);
   state_.assign(num_cameras, std::vector<DotState>(num_markers));
   absent_.assign(num_cameras, std::vector<char>(num_markers, 0));
+  barred_.assign(num_cameras, {});
+  confused_.assign(num_cameras, {});
   dot_size_px_ = dot_size_px;
   pyramid_.assign(num_cameras, {});
   for (int c = 0; c < num_cameras; ++c) {
@@ -536,8 +538,9 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
                  &detections, &detection_of, &out);
   // The review's fixes last, over every naming step (docs/review.md).
   std::vector<std::vector<DotDetection>> fixed;
-  const std::vector<std::vector<DotDetection>>& dots = ApplyFrameFixes(
-      detections, std::vector<bool>(num_cameras, true), fixes, outcome, &fixed, &detection_of);
+  const std::vector<std::vector<DotDetection>>& dots =
+      ApplyFrameFixes(detections, std::vector<bool>(num_cameras, true), fixes,
+                      std::vector<std::vector<int>>(num_cameras), outcome, &fixed, &detection_of);
   for (int c = 0; c < num_cameras; ++c) {
     out[c].detections = static_cast<int>(blind[c].size());
     for (int k = 0; k < num_markers; ++k) {
@@ -574,6 +577,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   std::vector<std::vector<int>> detection_of(num_cameras, std::vector<int>(num_markers, -1));
   std::vector<bool> present(num_cameras);
   for (int c = 0; c < num_cameras; ++c) present[c] = !images[c].empty();
+  std::vector<std::vector<int>> barred(num_cameras);  // the barred dots' detections
   // The cameras are independent until the stereo check: each one's flow
   // and matching touch only its own state, side by side.
   ParallelFor(0, num_cameras, [&](int64_t camera) {
@@ -581,6 +585,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
     if (!present[c]) {
       out[c].skipped = true;
       pyramid_[c].clear();
+      barred_[c].clear();  // a dot is followed only from frame to frame
       return;
     }
     const int window = FlowWindow(dot_size_px_[c], options_.flow_window);
@@ -617,6 +622,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
         }
       }
     }
+    barred[c] = FollowBarred(c, pyramid, detections[c]);
     pyramid_[c] = std::move(pyramid);
     std::vector<Vec2> prediction(num_markers);
     std::vector<char> predicted(num_markers, 0);
@@ -646,7 +652,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   SearchInRounds(images, flow_prediction, flow_predicted, &detections, &detection_of, &out);
   std::vector<std::vector<DotDetection>> fixed;
   const std::vector<std::vector<DotDetection>>& dots =
-      ApplyFrameFixes(detections, present, fixes, outcome, &fixed, &detection_of);
+      ApplyFrameFixes(detections, present, fixes, barred, outcome, &fixed, &detection_of);
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) continue;
     out[c].detections = static_cast<int>(blind[c].size());
@@ -682,7 +688,9 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
 int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
                             const std::vector<int>& detection_of) const {
   if (fix.has_pixel) {
-    const double gate = std::max(3.0, dot_size_px_[c]);
+    // Within the dot: a move's point may lie beside a neighbour's dot (a
+    // partly hidden dot the detector missed), which it must not take.
+    const double gate = std::max(3.0, 0.5 * dot_size_px_[c]);
     int best = -1;
     double best_d = gate;
     for (size_t d = 0; d < detections.size(); ++d) {
@@ -697,55 +705,125 @@ int MarkerTracker::FixedDot(int c, const TrackerFix& fix, const std::vector<DotD
   return fix.marker >= 0 ? detection_of[fix.marker] : -1;
 }
 
-const std::vector<std::vector<DotDetection>>& MarkerTracker::ApplyFrameFixes(
-    const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present,
-    const std::vector<std::vector<TrackerFix>>* fixes, std::vector<FixOutcome>* outcome,
-    std::vector<std::vector<DotDetection>>* storage, std::vector<std::vector<int>>* detection_of) {
-  const int num_cameras = static_cast<int>(detections.size());
-  if (outcome) outcome->assign(num_cameras, {});
-  if (!fixes) {
-    for (int c = 0; c < num_cameras; ++c) {
-      if (!present[c]) continue;
-      for (size_t k = 0; k < absent_[c].size(); ++k) {
-        if (absent_[c][k]) (*detection_of)[c][k] = -1;
+void MarkerTracker::ResolveConfusions(int c, const std::vector<DotDetection>& detections,
+                                      std::vector<int>* detection_of) const {
+  std::optional<LayoutView> view;
+  for (const auto& [a, b] : confused_[c]) {
+    const int d = (*detection_of)[a];
+    if (d < 0 || (*detection_of)[b] >= 0 || absent_[c][b]) continue;
+    if (!view) view = ViewLayout(c, positions_);
+    std::vector<int> others = *detection_of;
+    others[a] = -1;
+    Vec2 at_a, at_b;
+    CorrectedProjection(a, *view, detections, others, &at_a);
+    CorrectedProjection(b, *view, detections, others, &at_b);
+    const Vec2 p = detections[d].pixel;
+    if ((p - at_b).norm() < (p - at_a).norm()) {
+      (*detection_of)[a] = -1;
+      (*detection_of)[b] = d;
+    }
+  }
+}
+
+std::vector<int> MarkerTracker::FollowBarred(int c, const std::vector<cv::Mat>& pyramid,
+                                             const std::vector<DotDetection>& detections) const {
+  const std::vector<Vec2>& from_px = barred_[c];
+  std::vector<Vec2> predicted = from_px;
+  if (!from_px.empty() && !pyramid_[c].empty()) {
+    const int window = FlowWindow(dot_size_px_[c], options_.flow_window);
+    std::vector<cv::Point2f> from, to;
+    for (const Vec2& p : from_px) from.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    to = from;
+    std::vector<uchar> status;
+    std::vector<float> error;
+    const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01);
+    cv::calcOpticalFlowPyrLK(pyramid_[c], pyramid, from, to, status, error, cv::Size(window, window),
+                             3, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    for (size_t i = 0; i < from.size(); ++i) {
+      if (status[i]) predicted[i] = Vec2(to[i].x, to[i].y);
+    }
+  }
+  std::vector<int> found(from_px.size(), -1);
+  const double gate = 0.5 * dot_size_px_[c];
+  for (size_t i = 0; i < predicted.size(); ++i) {
+    double best = gate;
+    for (size_t d = 0; d < detections.size(); ++d) {
+      const double dist = (detections[d].pixel - predicted[i]).norm();
+      if (dist <= best) {
+        best = dist;
+        found[i] = static_cast<int>(d);
       }
     }
-    return detections;
   }
+  return found;
+}
+
+const std::vector<std::vector<DotDetection>>& MarkerTracker::ApplyFrameFixes(
+    const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present,
+    const std::vector<std::vector<TrackerFix>>* fixes, const std::vector<std::vector<int>>& barred,
+    std::vector<FixOutcome>* outcome, std::vector<std::vector<DotDetection>>* storage,
+    std::vector<std::vector<int>>* detection_of) {
+  const int num_cameras = static_cast<int>(detections.size());
+  if (outcome) outcome->assign(num_cameras, {});
+  const std::vector<TrackerFix> none;
   *storage = detections;
   for (int c = 0; c < num_cameras; ++c) {
     if (!present[c]) {  // the camera's image is missing: its fixes found no dot
-      for (size_t i = 0; outcome && i < (*fixes)[c].size(); ++i) (*outcome)[c].unmatched.push_back(static_cast<int>(i));
+      for (size_t i = 0; outcome && fixes && i < (*fixes)[c].size(); ++i) {
+        (*outcome)[c].unmatched.push_back(static_cast<int>(i));
+      }
       continue;
     }
-    const FixOutcome o = ApplyFixes(c, (*fixes)[c], &(*storage)[c], &(*detection_of)[c]);
+    const FixOutcome o = ApplyFixes(c, fixes ? (*fixes)[c] : none, barred[c], &(*storage)[c],
+                                    &(*detection_of)[c]);
     if (outcome) (*outcome)[c] = o;
   }
   return *storage;
 }
 
 FixOutcome MarkerTracker::ApplyFixes(int c, const std::vector<TrackerFix>& fixes,
+                                     const std::vector<int>& barred,
                                      std::vector<DotDetection>* detections, std::vector<int>* detection_of) {
   FixOutcome outcome;
-  auto give = [&](int marker, int d) {
+  // The dots barred from here on (detection indices), the barred ones
+  // still found first.
+  std::vector<int> bar;
+  for (int d : barred) {
+    if (d >= 0 && std::find(bar.begin(), bar.end(), d) == bar.end()) bar.push_back(d);
+  }
+  auto unname_dot = [&](int d) {
     for (int& held : *detection_of) {
-      if (held == d) held = -1;  // whoever held the dot loses it
+      if (held == d) held = -1;
     }
+  };
+  auto give = [&](int marker, int d) {
+    unname_dot(d);  // whoever held the dot loses it
     (*detection_of)[marker] = d;
     absent_[c][marker] = 0;
+    bar.erase(std::remove(bar.begin(), bar.end(), d), bar.end());  // a fix names it again
   };
+  for (int d : bar) unname_dot(d);
+  ResolveConfusions(c, *detections, detection_of);
   for (size_t i = 0; i < fixes.size(); ++i) {
     const TrackerFix& fix = fixes[i];
     int d = fix.action == TrackFixAction::kAbsent ? -1 : FixedDot(c, fix, *detections, *detection_of);
     switch (fix.action) {
       case TrackFixAction::kRename:
-        if (d >= 0) give(fix.to, d);
+        if (d >= 0) {
+          for (int k = 0; k < static_cast<int>(detection_of->size()); ++k) {
+            const std::pair<int, int> pair(k, fix.to);
+            if ((*detection_of)[k] == d && k != fix.to &&
+                std::find(confused_[c].begin(), confused_[c].end(), pair) == confused_[c].end()) {
+              confused_[c].push_back(pair);
+            }
+          }
+          give(fix.to, d);
+        }
         break;
       case TrackFixAction::kUnname:
         if (d >= 0) {
-          for (int& held : *detection_of) {
-            if (held == d) held = -1;
-          }
+          unname_dot(d);
+          if (std::find(bar.begin(), bar.end(), d) == bar.end()) bar.push_back(d);
         }
         break;
       case TrackFixAction::kAbsent:
@@ -772,6 +850,8 @@ FixOutcome MarkerTracker::ApplyFixes(int c, const std::vector<TrackerFix>& fixes
   for (size_t k = 0; k < detection_of->size(); ++k) {
     if (absent_[c][k]) (*detection_of)[k] = -1;
   }
+  barred_[c].clear();
+  for (int d : bar) barred_[c].push_back((*detections)[d].pixel);
   return outcome;
 }
 

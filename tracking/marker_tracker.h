@@ -69,6 +69,7 @@
 
 #include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -278,21 +279,42 @@ class MarkerTracker {
   // The frame's fixes of camera c, after every other naming step so
   // that nothing undoes them: rename and move give the marker the dot
   // (taking it from whoever held it: that marker is lost and re-acquired
-  // later), unname takes the name off, absent keeps the marker unnamed in
-  // this camera until a later rename or move names it. A move to where no
-  // dot was detected adds the point as a detection (score 1). Then every
-  // absent marker is unnamed.
-  FixOutcome ApplyFixes(int c, const std::vector<TrackerFix>& fixes,
+  // later), unname takes the name off the dot and bars it (below), absent
+  // keeps the marker unnamed in this camera until a later rename or move
+  // names it. A move to where no dot was detected adds the point as a
+  // detection (score 1). First the barred dots `barred` (detection
+  // indices, -1: not found) lose their names, and the confusions fixed
+  // before are undone (ResolveConfusions); last every absent marker is
+  // unnamed. Leaves in barred_[c] the barred dots' positions. A rename of
+  // a dot marker A held to marker B records the confusion (A, B).
+  FixOutcome ApplyFixes(int c, const std::vector<TrackerFix>& fixes, const std::vector<int>& barred,
                         std::vector<DotDetection>* detections, std::vector<int>* detection_of);
-  // ApplyFixes for every camera present (without fixes: only the absent
-  // markers unnamed). Returns the detections the names point into: the
-  // frame's, or `storage` holding them with the fixes' added points.
+  // ApplyFixes for every camera present (no fixes: only the barred dots
+  // and absent markers unnamed). Returns the detections the names point
+  // into: the frame's, or `storage` holding them with the fixes' added
+  // points.
   const std::vector<std::vector<DotDetection>>& ApplyFrameFixes(
       const std::vector<std::vector<DotDetection>>& detections, const std::vector<bool>& present,
-      const std::vector<std::vector<TrackerFix>>* fixes, std::vector<FixOutcome>* outcome,
+      const std::vector<std::vector<TrackerFix>>* fixes,
+      const std::vector<std::vector<int>>& barred, std::vector<FixOutcome>* outcome,
       std::vector<std::vector<DotDetection>>* storage, std::vector<std::vector<int>>* detection_of);
-  // The detection a fix points at: the nearest to its pixel within the
-  // dot's size (at least 3 px), else the one its marker holds; -1: none.
+  // A confusion a rename fixed, (A, B): marker A had taken B's dot. On a
+  // later frame where A holds a dot and B none, the dot goes to B if it is
+  // nearer B's place than A's (each marker's projection under the current
+  // pose, corrected by its named neighbours, the two taken out of each
+  // other's correction): the tracker's re-acquisition and flow repeat
+  // a confusion when B's dot is lost and found again (docs/review.md).
+  void ResolveConfusions(int c, const std::vector<DotDetection>& detections,
+                         std::vector<int>* detection_of) const;
+  // Camera c's barred dots followed into the frame whose flow pyramid is
+  // `pyramid`: per barred dot of barred_[c] the detection it is now (-1:
+  // not found, the bar ends) -- its flow from the previous frame (else its
+  // position), then the nearest detection within half a dot diameter.
+  std::vector<int> FollowBarred(int c, const std::vector<cv::Mat>& pyramid,
+                                const std::vector<DotDetection>& detections) const;
+  // The detection a fix points at: the nearest to its pixel within half
+  // the dot's size (at least 3 px), else (not a move) the one its marker
+  // holds; -1: none.
   int FixedDot(int c, const TrackerFix& fix, const std::vector<DotDetection>& detections,
                const std::vector<int>& detection_of) const;
 
@@ -303,6 +325,12 @@ class MarkerTracker {
   ReferenceLabelling labelling_;
   std::vector<std::vector<DotState>> state_;  // [camera][marker]
   std::vector<std::vector<char>> absent_;     // [camera][marker]: set by an `absent` fix
+  // [camera]: the dots an `unname` fix took the name off (px), followed
+  // frame to frame and given no name until a fix names them or they are
+  // not found.
+  std::vector<std::vector<Vec2>> barred_;
+  // [camera]: the confusions (A, B) renames fixed (ResolveConfusions).
+  std::vector<std::vector<std::pair<int, int>>> confused_;
   std::vector<std::vector<cv::Mat>> pyramid_;  // [camera]: previous frame's flow pyramid
   std::vector<double> dot_size_px_;
   Rigid3 helmet_from_head_ = Rigid3::Identity();

@@ -6,8 +6,12 @@
 //
 //   frame,camera,marker,action,x,y,to
 //   rename  the dot of `marker` (or, with x,y, the detection nearest
-//           (x, y)) is marker `to`; `marker` may be empty (an unnamed dot)
-//   unname  the dot of `marker` (or nearest (x, y)) has no name
+//           (x, y)) is marker `to`; `marker` may be empty (an unnamed dot);
+//           the confusion is kept fixed on the later frames
+//           (MarkerTracker::ResolveConfusions)
+//   unname  the dot of `marker` (or nearest (x, y)) has no name from this
+//           frame on: the tracker follows it and names it no more until a
+//           later fix names it (rename or move to it) or it is not found
 //   absent  `marker` is not in this camera's view from this frame on,
 //           until a later fix names it (rename ... to it, or move it)
 //   move    `marker` is at (x, y): the detection there, else that point

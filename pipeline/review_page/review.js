@@ -11,7 +11,7 @@ const hmcReview = (function () {
   const STATE_COLOURS = ['#3ddc5a', '#ffa028', '#3cc8ff', '#ff3c3c'];
   const FIXED_COLOUR = '#ff4cff';
   const S = {
-    meta: null, topology: null, chunks: new Map(), loading: new Map(),
+    meta: null, topology: null, chunks: new Map(), loading: new Map(), inflating: new Map(),
     index: 0, playing: false, timer: null, images: [], cams: [],
     fixes: [], selected: null, drag: null, three: null, errors: [],
     firstRender: null, testMode: /[?&]test=(1|open)/.test(location.search),
@@ -38,7 +38,9 @@ const hmcReview = (function () {
     if (k < 0 || k >= S.meta.chunks) return Promise.resolve();
     if (S.chunks.has(k)) return Promise.resolve();
     if (!S.loading.has(k)) {
-      S.loading.set(k, loadScript('data/chunk_' + String(k).padStart(5, '0') + '.js'));
+      // The script calls chunk(), which inflates the meshes: done when both are.
+      S.loading.set(k, loadScript('data/chunk_' + String(k).padStart(5, '0') + '.js')
+        .then(() => S.inflating.get(k)).finally(() => S.inflating.delete(k)));
     }
     return S.loading.get(k);
   }
@@ -94,12 +96,16 @@ const hmcReview = (function () {
     for (let j = 0; j < raw.length; j += 4) {
       dots.push({ marker: names[raw[j]], x: raw[j + 1], y: raw[j + 2], state: raw[j + 3], fixed: false });
     }
-    const absent = new Set();
+    // absent: the marker from its frame on; unnamed: the dot from its
+    // frame on, which the tracker follows -- previewed as the dot that
+    // marker holds in the run's tracks (docs/review.md).
+    const absent = new Set(), unnamed = new Set();
     for (const f of S.fixes) {
       if (f.camera !== camName || f.frame > frame) continue;
       if (f.action === 'absent') absent.add(f.marker);
-      if (f.action === 'rename') absent.delete(f.to);
-      if (f.action === 'move') absent.delete(f.marker);
+      if (f.action === 'rename') { absent.delete(f.to); unnamed.delete(f.to); }
+      if (f.action === 'move') { absent.delete(f.marker); unnamed.delete(f.marker); }
+      if (f.action === 'unname' && f.marker && f.frame < frame) unnamed.add(f.marker);
       if (f.frame !== frame) continue;
       const d = dots.find((o) => o.marker === f.marker && (f.x === null || Math.hypot(o.x - f.x, o.y - f.y) < 1e-2)) ||
                 dots.find((o) => f.x !== null && Math.hypot(o.x - f.x, o.y - f.y) < 1e-2);
@@ -115,7 +121,7 @@ const hmcReview = (function () {
         else dots.push({ marker: f.marker, x: f.x, y: f.y, state: 0, fixed: true });
       }
     }
-    return dots.filter((o) => !absent.has(o.marker));
+    return dots.filter((o) => !absent.has(o.marker) && !(unnamed.has(o.marker) && !o.fixed));
   }
 
   // ---------- cameras ----------
@@ -624,21 +630,32 @@ const hmcReview = (function () {
   // One chunk of frames: per frame its tracks (per camera a flat list of
   // marker, x, y, state), bundles (marker, x, y, z, residual, outside) and
   // the mesh record in the chunk's binary (docs/formats.md, "Review").
+  // The binary is deflated (zlib): the browser's DecompressionStream
+  // inflates it; the chunk is shown once it is.
+  function inflate(buffer) {
+    const stream = new Blob([buffer]).stream().pipeThrough(new DecompressionStream('deflate'));
+    return new Response(stream).arrayBuffer();
+  }
   function chunk(k, frames, meshBase64) {
     const V = S.meta.mesh ? S.meta.mesh.vertices : 0;
-    const buf = meshBase64 ? decodeBase64(meshBase64) : null;
-    let offset = 0;
-    for (const f of frames) {
-      if (!f.has_mesh || !buf) continue;
-      const scale = new DataView(buf, offset, 4).getFloat32(0, true);
-      const displacement = new Int16Array(buf, offset + 4, 3 * V);
-      offset += 4 + 6 * V;
-      let error = null;
-      if (S.meta.mesh.has_error) { error = new Uint8Array(buf, offset, V); offset += V; }
-      offset = (offset + 3) & ~3;
-      f.mesh = { scale, displacement, error };
-    }
-    S.chunks.set(k, { frames });
+    const inflated = meshBase64 ? inflate(decodeBase64(meshBase64)) : Promise.resolve(null);
+    S.inflating.set(k, inflated.then((buf) => {
+      let offset = 0;
+      for (const f of frames) {
+        if (!f.has_mesh || !buf) continue;
+        const scale = new DataView(buf, offset, 4).getFloat32(0, true);
+        // int16 as two byte planes: the low bytes, then the high.
+        const low = new Uint8Array(buf, offset + 4, 3 * V), high = new Uint8Array(buf, offset + 4 + 3 * V, 3 * V);
+        const displacement = new Int16Array(3 * V);
+        for (let j = 0; j < 3 * V; ++j) displacement[j] = low[j] | (high[j] << 8);
+        offset += 4 + 6 * V;
+        let error = null;
+        if (S.meta.mesh.has_error) { error = new Uint8Array(buf, offset, V); offset += V; }
+        offset = (offset + 3) & ~3;
+        f.mesh = { scale, displacement, error };
+      }
+      S.chunks.set(k, { frames });
+    }).catch((e) => { S.errors.push('cannot inflate chunk ' + k + ': ' + e); }));
   }
 
   // ---------- test mode (?test=1): scripted checks, results in the DOM ----------
@@ -673,6 +690,15 @@ const hmcReview = (function () {
         let move = 0;
         for (let j = 0; j < meshA.length; ++j) move = Math.max(move, Math.abs(S.three.positions[j] - meshA[j]));
         results.mesh_max_move_mm = move;
+        // 50 vertices of the mesh drawn, for the test to compare with the
+        // solve's mesh.pc2 (the chunks' decoding and rounding).
+        const V = S.meta.mesh.vertices, vertices = [], positions = [];
+        for (let k = 0; k < 50; ++k) {
+          const v = Math.floor(k * (V - 1) / 49);
+          vertices.push(v);
+          for (let c = 0; c < 3; ++c) positions.push(S.three.positions[3 * v + c]);
+        }
+        results.mesh_sample = { frame: S.three.shownFrame, vertices, positions };
       }
       // A scripted rename: the first dot of the first camera at frame b is
       // renamed to the marker that camera's second dot has.
