@@ -60,6 +60,10 @@ void MarkerTrackerOptions::Register(OptionFields* fields) {
               "search for an expected dot: radius (fraction of the nearest-dot distance; 0 = off)")
       .AtLeast(0)
       .Below(0.5);
+  fields->Add("lost_frames", &lost_frames,
+              "a dot missing this many frames in a row where both cameras should see it, after "
+              "as many named in both, is lost (0 = never)")
+      .AtLeast(0);
 }
 
 bool MarkerTrackerOptions::Check() const {
@@ -398,6 +402,81 @@ void MarkerTracker::NameFromLayout(int c, const std::vector<Vec3>& positions,
   }
 }
 
+bool MarkerTracker::MissingWhereSeen(int k, const LayoutView& view,
+                                     const std::vector<DotDetection>& detections,
+                                     const std::vector<int>& detection_of,
+                                     const std::vector<char>& named) const {
+  if (view.cos[k] < kSearchMinCos) return false;
+  Vec2 place;
+  if (CorrectedProjection(k, view, detections, detection_of, &place) < kSearchMinNeighbours) {
+    return false;
+  }
+  double spacing = std::numeric_limits<double>::infinity();
+  for (size_t j = 0; j < view.cos.size(); ++j) {
+    if (static_cast<int>(j) != k && view.cos[j] > 0) {
+      spacing = std::min(spacing, (view.projection[j] - view.projection[k]).norm());
+    }
+  }
+  const double gate = std::min(options_.max_gate_px, options_.name_gate * spacing);
+  for (size_t d = 0; d < detections.size(); ++d) {
+    if (!named[d] && (detections[d].pixel - place).norm() < gate) return false;
+  }
+  return true;
+}
+
+void MarkerTracker::UpdateLost(const std::vector<std::vector<DotDetection>>& detections,
+                               const std::vector<bool>& present,
+                               std::vector<std::vector<int>>* detection_of,
+                               std::vector<CameraFrameTracks>* out) {
+  const int num_cameras = static_cast<int>(detections.size());
+  const int num_markers = static_cast<int>(layout_.names.size());
+  if (options_.lost_frames <= 0 || num_cameras < 2) return;
+  std::vector<LayoutView> views(num_cameras);
+  std::vector<std::vector<char>> named(num_cameras);
+  for (int c = 0; c < num_cameras; ++c) {
+    if (!present[c]) continue;
+    views[c] = ViewLayout(c, positions_);
+    named[c].assign(detections[c].size(), 0);
+    for (int d : (*detection_of)[c]) {
+      if (d >= 0) named[c][d] = 1;
+    }
+  }
+  for (int k = 0; k < num_markers; ++k) {
+    // Named in both cameras, or missing in every camera (one that sees the
+    // dot at a grazing angle or beside the lips' opening may just miss it).
+    bool both = true, missing = layout_.border_mm[k] >= kBesideOpeningMm;
+    for (int c = 0; c < num_cameras; ++c) {
+      const bool has = present[c] && (*detection_of)[c][k] >= 0;
+      both = both && has;
+      missing = missing && present[c] && !has && views[c].cos[k] > kSquarelyCos &&
+                MissingWhereSeen(k, views[c], detections[c], (*detection_of)[c], named[c]);
+    }
+    if (both) {
+      // Named in both cameras (their rays meet: the stereo check and the
+      // search saw to it): the dot is there.
+      ++stereo_frames_[k];
+      missing_frames_[k] = 0;
+      lost_since_[k] = -1;
+      continue;
+    }
+    if (!missing) {
+      missing_frames_[k] = 0;
+    } else {
+      if (missing_frames_[k]++ == 0) missing_since_[k] = frame_;
+      if (lost_since_[k] < 0 && missing_frames_[k] >= options_.lost_frames &&
+          stereo_frames_[k] >= options_.lost_frames) {
+        lost_since_[k] = missing_since_[k];
+      }
+    }
+    if (lost_since_[k] < 0) continue;
+    for (int c = 0; c < num_cameras; ++c) {
+      if (!present[c] || (*detection_of)[c][k] < 0) continue;
+      (*detection_of)[c][k] = -1;
+      ++(*out)[c].lost_dropped;
+    }
+  }
+}
+
 void MarkerTracker::UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
                                    const std::vector<std::vector<int>>& detection_of) {
   if (detection_of.size() < 2) return;
@@ -517,6 +596,11 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
   absent_.assign(num_cameras, std::vector<char>(num_markers, 0));
   barred_.assign(num_cameras, {});
   confused_.assign(num_cameras, {});
+  frame_ = 0;
+  stereo_frames_.assign(num_markers, 0);
+  missing_frames_.assign(num_markers, 0);
+  missing_since_.assign(num_markers, -1);
+  lost_since_.assign(num_markers, -1);
   dot_size_px_ = dot_size_px;
   pyramid_.assign(num_cameras, {});
   for (int c = 0; c < num_cameras; ++c) {
@@ -536,6 +620,7 @@ std::vector<CameraFrameTracks> MarkerTracker::Start(
                  std::vector<std::vector<Vec2>>(num_cameras, std::vector<Vec2>(num_markers)),
                  std::vector<std::vector<char>>(num_cameras, std::vector<char>(num_markers, 0)),
                  &detections, &detection_of, &out);
+  UpdateLost(detections, std::vector<bool>(num_cameras, true), &detection_of, &out);
   // The review's fixes last, over every naming step (docs/review.md).
   std::vector<std::vector<DotDetection>> fixed;
   const std::vector<std::vector<DotDetection>>& dots =
@@ -650,6 +735,8 @@ std::vector<CameraFrameTracks> MarkerTracker::Step(
   }
   StereoCheck(detections, &detection_of, &out);
   SearchInRounds(images, flow_prediction, flow_predicted, &detections, &detection_of, &out);
+  ++frame_;
+  UpdateLost(detections, present, &detection_of, &out);
   std::vector<std::vector<DotDetection>> fixed;
   const std::vector<std::vector<DotDetection>>& dots =
       ApplyFrameFixes(detections, present, fixes, barred, outcome, &fixed, &detection_of);

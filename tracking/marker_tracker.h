@@ -65,6 +65,16 @@
 //   neighbours for the next). A dot with no detection in its gate and none
 //   found by the search is hidden: no row, the track is lost until
 //   re-acquired.
+// Dots lost mid-take (paint rubbed off; docs/tracking.md, "Dots lost
+//   mid-take"): a marker named in both cameras in at least `lost_frames`
+//   frames, then for `lost_frames` frames in a row named in neither and
+//   missing in both where they see it squarely (view cosine > 0.5, placed
+//   by at least two named neighbours, no unnamed detection within the
+//   naming gate of its place; not beside the lips' opening), is lost from
+//   the first of those frames: from then on a name it gets in one camera
+//   only (an eyelid's edge where the dot was, a neighbour's dot) is
+//   dropped, until it is named in both cameras again (the rays meeting:
+//   the dot is back).
 #pragma once
 
 #include <array>
@@ -103,6 +113,9 @@ struct MarkerTrackerOptions {
   // Search for an expected dot the blind detector missed: radius (fraction
   // of the nearest-dot distance; 0 = off).
   double search_gate = 0.3;
+  // A dot missing this many frames in a row where both cameras should see
+  // it, after as many named in both, is lost (0 = never declared lost).
+  int lost_frames = 3;
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -145,6 +158,7 @@ struct CameraFrameTracks {
   int reacquired = 0;          // names given to dots that were lost or never seen
   int swaps_caught = 0;        // names dropped by the stereo check
   int searched = 0;            // names given to dots found by the search for expected dots
+  int lost_dropped = 0;        // names dropped: their marker is lost (MarkerTracker::lost_since)
   bool skipped = false;        // the camera's image was missing
   // Markers left unnamed that face the camera squarely, placed by named
   // neighbours, with no detection where their dot should be: not painted,
@@ -210,6 +224,11 @@ class MarkerTracker {
 
   const ReferenceLabelling& labelling() const { return labelling_; }
 
+  // Per marker: the frame (0: the reference frame Start labelled, n: the
+  // n-th Step after it) from which its dot is lost (file comment), -1 if
+  // it is not. A marker whose dot is back is -1 again.
+  const std::vector<int>& lost_since() const { return lost_since_; }
+
  private:
   enum class Status { kNone, kTracked, kLost };
   struct DotState {
@@ -269,6 +288,19 @@ class MarkerTracker {
                       const std::vector<DotDetection>& detections, double gate_fraction,
                       bool allow_uncorrected, std::vector<int>* detection_of,
                       std::vector<int>* vacant = nullptr) const;
+  // Dots lost mid-take (file comment), after every naming step of a frame
+  // but the fixes: counts each marker's frames named in both cameras and
+  // those it is missing in a row, declares it lost or back, and drops the
+  // one-camera names of a lost marker.
+  void UpdateLost(const std::vector<std::vector<DotDetection>>& detections,
+                  const std::vector<bool>& present, std::vector<std::vector<int>>* detection_of,
+                  std::vector<CameraFrameTracks>* out);
+  // Whether marker k's dot is missing where it should be seen in the camera of `view`
+  // (UpdateLost).
+  bool MissingWhereSeen(int k, const LayoutView& view,
+                        const std::vector<DotDetection>& detections,
+                        const std::vector<int>& detection_of,
+                        const std::vector<char>& named) const;
   // helmet_from_head_ from the markers named in both cameras (trimmed fit),
   // then jaw_ and positions_ (with a jaw rig).
   void UpdateHeadPose(const std::vector<std::vector<DotDetection>>& detections,
@@ -336,6 +368,11 @@ class MarkerTracker {
   Rigid3 helmet_from_head_ = Rigid3::Identity();
   JawPose jaw_;                  // the current jaw pose (labelled, then refitted per frame)
   std::vector<Vec3> positions_;  // the layout at jaw_ (head space)
+  // Dots lost mid-take, per marker (UpdateLost): frames named in both
+  // cameras, frames missing in a row and the first of them, and
+  // lost_since().
+  int frame_ = 0;  // 0 at Start, +1 per Step
+  std::vector<int> stereo_frames_, missing_frames_, missing_since_, lost_since_;
 };
 
 }  // namespace hmc

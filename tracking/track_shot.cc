@@ -149,7 +149,8 @@ std::string ProxyJpeg(const cv::Mat& image, bool srgb, cv::Rect crop, int height
   return std::string(jpeg.begin(), jpeg.end());
 }
 
-nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) {
+nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error,
+                          const MarkerLayout& layout) {
   nlohmann::json j;
   j["detections"] = t.detections;
   j["named"] = t.marker.size();
@@ -158,9 +159,32 @@ nlohmann::json CameraJson(const CameraFrameTracks& t, const std::string& error) 
   j["reacquired"] = t.reacquired;
   j["swaps_caught"] = t.swaps_caught;
   j["searched"] = t.searched;
+  j["lost_dropped"] = t.lost_dropped;
   j["skipped"] = t.skipped;
+  nlohmann::json vacant = nlohmann::json::array();
+  for (int k : t.vacant) vacant.push_back(layout.names[k]);
+  j["vacant"] = vacant;
   if (!error.empty()) j["error"] = error;
   return j;
+}
+
+// Follows the tracker's lost dots after each frame (MarkerTracker::
+// lost_since): a marker newly lost opens an episode from the first frame
+// it was missing (it has no rows since: missing means named in no
+// camera); a marker named in both cameras again closes it at this frame.
+void TrackLostDots(const std::vector<int>& lost_since, const std::vector<int>& frame_of,
+                   const MarkerLayout& layout, std::vector<int>* episode,
+                   std::vector<TrackSummary::LostDot>* lost) {
+  for (size_t k = 0; k < lost_since.size(); ++k) {
+    int& open = (*episode)[k];
+    if (lost_since[k] < 0) {
+      if (open >= 0) (*lost)[open].back_frame = frame_of.back();
+      open = -1;
+    } else if (open < 0) {
+      open = static_cast<int>(lost->size());
+      lost->push_back({layout.names[k], frame_of[lost_since[k]], 0});
+    }
+  }
 }
 
 }  // namespace
@@ -247,6 +271,10 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
       for (int i : outcome[c].unmatched) summary.fixes_unmatched_lines.push_back(lines->second[c][i]);
     }
   };
+  // Dots lost mid-take: the frame of each tracker frame (0: the reference
+  // frame), each marker's open episode (index into summary.lost_dots, -1).
+  std::vector<int> frame_of;
+  std::vector<int> lost_episode(layout.names.size(), -1);
   std::vector<cv::Rect> proxy_crops;          // per camera (input.proxy_dir)
   std::vector<std::vector<int>> proxy_frames;  // per camera: the frames with a proxy
   Progress progress("track", reader.num_frames());
@@ -351,7 +379,7 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
         row.score = t.score[i];
         output.tracks.push_back(row);
       }
-      frame_json["cameras"][names[c]] = CameraJson(t, frame->errors[c]);
+      frame_json["cameras"][names[c]] = CameraJson(t, frame->errors[c], layout);
       if (!input.overlay_dir.empty() && present[c]) {
         WritePng(input.overlay_dir / fmt::format("frame_{:06d}_{}.png", frame->frame, names[c]),
                  DrawNamed(frame->images[c], t, layout,
@@ -361,6 +389,8 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
     }
     frames_json.push_back(frame_json);
     for (size_t m = 0; m < vacant_in.size(); ++m) vacant_frames[m] += vacant_in[m] == frame->frame;
+    frame_of.push_back(frame->frame);
+    TrackLostDots(tracker.lost_since(), frame_of, layout, &lost_episode, &summary.lost_dots);
   }
   progress.Finish();
   if (!started) {
@@ -405,6 +435,15 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
         missing.size(), layout.names.size(),
         fmt::join(missing.begin(), missing.begin() + shown, ", "),
         missing.size() > shown ? ", ..." : ""));
+  }
+  std::vector<std::string> lost_to_end;
+  for (const TrackSummary::LostDot& l : summary.lost_dots) {
+    if (l.back_frame == 0) lost_to_end.push_back(fmt::format("{} from frame {}", l.marker, l.from_frame));
+  }
+  if (!lost_to_end.empty()) {
+    summary.warnings.push_back(fmt::format(
+        "{} dots lost mid-take (missing where they should be seen, not named from then on): {}",
+        lost_to_end.size(), fmt::join(lost_to_end, ", ")));
   }
   for (const std::string& w : summary.warnings) spdlog::warn("track: {}", w);
   summary.dot_size_px = dot_size;
@@ -466,6 +505,13 @@ TrackOutput RunTrack(const TrackInput& input, const TrackOptions& options) {
   }
   j["never_found"] = summary.never_found;
   j["missing_dots"] = summary.missing_dots;
+  j["lost_dots"] = nlohmann::json::array();
+  for (const TrackSummary::LostDot& l : summary.lost_dots) {
+    j["lost_dots"].push_back({{"marker", l.marker},
+                              {"from_frame", l.from_frame},
+                              {"back_frame", l.back_frame > 0 ? nlohmann::json(l.back_frame)
+                                                              : nlohmann::json()}});
+  }
   j["summary"] = {{"frames", summary.frames},
                   {"skipped_views", summary.skipped_views},
                   {"mean_detections", summary.mean_detections},

@@ -79,6 +79,16 @@ struct TrackSummary {
   // or painted elsewhere, and then the dots near them may carry wrong
   // names; warned.
   std::vector<std::string> missing_dots;
+  // Dots lost mid-take (MarkerTracker::lost_since; docs/tracking.md, "Dots
+  // lost mid-take"): the marker, the first frame it was missing, and the
+  // frame it was named in both cameras again (0: lost to the end of the
+  // take, warned). A lost marker has no rows from `from_frame` until then.
+  struct LostDot {
+    std::string marker;
+    int from_frame = 0;
+    int back_frame = 0;
+  };
+  std::vector<LostDot> lost_dots;
   // Track fixes (TrackInput::fixes): rows read, applied, and the lines
   // of the file whose dot was not found (or whose frame was not tracked).
   int fixes = 0;
