@@ -683,27 +683,83 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
 
 }  // namespace
 
-std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetectorOptions &options,
-                                          double dot_size_px, const ExpectedDot &expected) {
-  const double sign = options.polarity == "bright" ? -1 : 1;
-  // The patch holds the search disc, the largest dot, its ring and the
-  // closing's reach.
+namespace {
+
+// The patch of the frame round an expected dot: the search disc, the
+// largest dot, its ring and the closing's reach; as floats, with the skin
+// without the dots (the closing) and the prediction in its coordinates.
+struct ExpectedPatch {
+  cv::Rect rect;
+  cv::Mat image, skin;
+  Vec2 at = Vec2::Zero();
+};
+
+std::optional<ExpectedPatch> MakeExpectedPatch(const cv::Mat &grey,
+                                               const DotDetectorOptions &options,
+                                               double dot_size_px, const ExpectedDot &expected,
+                                               double sign) {
   const int half = static_cast<int>(std::ceil(expected.radius_px +
                                               0.5 * options.max_size * dot_size_px + kRingOut +
                                               2 + ClosingSide(dot_size_px)));
-  const cv::Rect rect(static_cast<int>(std::lround(expected.pixel.x())) - half,
+  ExpectedPatch out;
+  out.rect = cv::Rect(static_cast<int>(std::lround(expected.pixel.x())) - half,
                       static_cast<int>(std::lround(expected.pixel.y())) - half, 2 * half + 1,
                       2 * half + 1);
+  const cv::Rect &rect = out.rect;
   const int border = options.border_px;
   if (rect.x < border || rect.y < border || rect.x + rect.width > grey.cols - border ||
       rect.y + rect.height > grey.rows - border) {
     return std::nullopt;
   }
   const cv::Mat patch = grey(rect);
-  cv::Mat image = AsFloat(patch);
-  if (image.data == patch.data) image = image.clone();
-  const cv::Mat skin = ClosedSkin(patch, dot_size_px, sign);
-  const Vec2 at = expected.pixel - Vec2(rect.x, rect.y);
+  out.image = AsFloat(patch);
+  if (out.image.data == patch.data) out.image = out.image.clone();
+  out.skin = ClosedSkin(patch, dot_size_px, sign);
+  out.at = expected.pixel - Vec2(rect.x, rect.y);
+  return out;
+}
+
+// The matched filter of the predicted ellipse (long axis the dot's
+// diameter across the projected normal, short axis times the view cosine)
+// within `radius` of the prediction, taken where it is significant
+// against the window's own texture, of a paint's darkening, its optimum
+// inside the search disc, and the window's skin not cut by a dark edge.
+std::optional<DotDetection> AcceptedTemplate(const ExpectedPatch &patch,
+                                             const DotDetectorOptions &options,
+                                             double dot_size_px, const ExpectedDot &expected,
+                                             double radius, double sign) {
+  BlobEllipse shape;
+  shape.a = 0.5 * dot_size_px;
+  shape.b = shape.a * std::clamp(expected.axis_ratio, 1 / options.max_elongation, 1.0);
+  shape.ux = -expected.short_axis.y();
+  shape.uy = expected.short_axis.x();
+  double intruded = 0;
+  const TemplateFit fit =
+      FitTemplate(patch.image, patch.skin, patch.at, shape, radius, sign, &intruded);
+  if (!fit.ok || fit.at_edge || fit.snr < kTemplateMinSnr) return std::nullopt;
+  if (fit.contrast < options.min_contrast || fit.contrast > kTemplateMaxContrast) {
+    return std::nullopt;
+  }
+  if (intruded > kMaxRingIntrusion) return std::nullopt;
+  Refined refined;
+  refined.ok = true;
+  refined.centre = fit.centre;
+  refined.contrast = fit.contrast;
+  refined.elongation = shape.a / shape.b;
+  return MakeDetection(refined, Vec2(patch.rect.x, patch.rect.y), 2 * shape.a);
+}
+
+}  // namespace
+
+std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetectorOptions &options,
+                                          double dot_size_px, const ExpectedDot &expected) {
+  const double sign = options.polarity == "bright" ? -1 : 1;
+  const std::optional<ExpectedPatch> patch =
+      MakeExpectedPatch(grey, options, dot_size_px, expected, sign);
+  if (!patch) return std::nullopt;
+  const cv::Rect &rect = patch->rect;
+  const cv::Mat &image = patch->image, &skin = patch->skin;
+  const Vec2 &at = patch->at;
   const double noise = EstimateNoise(image, 1);
   bool ambiguous = false;
   auto blob_search = [&]() -> std::optional<DotDetection> {
@@ -765,32 +821,10 @@ std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetector
   // darkening would pull the window's centroid.
   if (dot_size_px * expected.axis_ratio > kGuidedMaxFaintWidth) return std::nullopt;
   // No blob: the dot too faint or too thin for a threshold on its pixels
-  // (a 3 px dot at view cosine 0.2 is under a pixel wide). Its ellipse is
-  // predicted (long axis the dot's diameter across the projected normal,
-  // short axis times the view cosine) and fitted as a matched filter
-  // (FitTemplate): taken for the dot where it is significant against the
-  // window's own texture, of a paint's darkening, its optimum inside the
-  // search disc, and the window's skin not cut by a dark edge.
-  BlobEllipse shape;
-  shape.a = 0.5 * dot_size_px;
-  shape.b = shape.a * std::clamp(expected.axis_ratio, 1 / options.max_elongation, 1.0);
-  shape.ux = -expected.short_axis.y();
-  shape.uy = expected.short_axis.x();
-  double intruded = 0;
-  const TemplateFit fit =
-      FitTemplate(image, skin, at, shape, std::min(expected.radius_px, kTemplateMaxOffset), sign,
-                  &intruded);
-  if (!fit.ok || fit.at_edge || fit.snr < kTemplateMinSnr) return std::nullopt;
-  if (fit.contrast < options.min_contrast || fit.contrast > kTemplateMaxContrast) {
-    return std::nullopt;
-  }
-  if (intruded > kMaxRingIntrusion) return std::nullopt;
-  Refined refined;
-  refined.ok = true;
-  refined.centre = fit.centre;
-  refined.contrast = fit.contrast;
-  refined.elongation = shape.a / shape.b;
-  return MakeDetection(refined, Vec2(rect.x, rect.y), 2 * shape.a);
+  // (a 3 px dot at view cosine 0.2 is under a pixel wide): the matched
+  // filter of its predicted ellipse (FitTemplate).
+  return AcceptedTemplate(*patch, options, dot_size_px, expected,
+                          std::min(expected.radius_px, kTemplateMaxOffset), sign);
 }
 
 double MeasureDotSize(const cv::Mat &grey, const DotDetectorOptions &options) {
