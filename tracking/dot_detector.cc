@@ -115,6 +115,12 @@ constexpr double kTemplateMinSnr = 5;
 // on fresh shots: 0 of ~950 fits within 0.75 px were over 1 px off any dot,
 // against a third of those farther).
 constexpr double kTemplateMaxOffset = 1.0;
+// ... and the strips beyond its ends at most this dark relative to its
+// middle (TemplateFit::end_ratio): a line (a crease, a lash, a lid's or a
+// lip's edge) along the predicted ellipse fits it as well as a dot, but
+// goes on beyond its ends, where a dot's anti-aliased tips and blur leave
+// a small fraction of its middle's darkening.
+constexpr double kTemplateMaxEndRatio = 0.5;
 // ... and its fitted paint darkening at most this: a relative darkening is
 // at most 1, with slack for a dot wider than predicted (the neutral's
 // normal is not the posed face's); a wide dark thing fitted with a thin
@@ -518,6 +524,10 @@ struct TemplateFit {
   double contrast = 0;         // A
   double snr = 0;              // A / its standard error
   bool at_edge = false;        // the best centre on the search disc's rim
+  // The darker of the strips beyond the ellipse's two ends, as a fraction
+  // of the darkening along its middle (both above the fitted plane): a
+  // dot ends where the ellipse does, a crease or a lid's edge goes on.
+  double end_ratio = 0;
 };
 
 // Window pixels dark beyond this many robust sigmas of the window's skin
@@ -606,7 +616,7 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
   std::vector<double> t(window.size());
   // The fit at centre offset o: its squared residual, A and A's variance
   // factor ((X'X)^-1 at A).
-  auto fit = [&](const Vec2 &o, double *a, double *a_var) {
+  auto fit = [&](const Vec2 &o, double *a, double *a_var, Eigen::Vector4d *coefficients) {
     Eigen::Vector3d pt = Eigen::Vector3d::Zero();
     double tt = 0, td = 0;
     for (size_t i = 0; i < window.size(); ++i) {
@@ -640,19 +650,23 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
     if (!beta.allFinite() || !(tt > 0)) return std::numeric_limits<double>::infinity();
     *a = beta(3);
     *a_var = ldlt.solve(Eigen::Vector4d::UnitW())(3);
+    *coefficients = beta;
     return dd - beta.dot(rhs);
   };
   double best = std::numeric_limits<double>::infinity(), best_a = 0, best_var = 0;
   Vec2 best_o = Vec2::Zero();
+  Eigen::Vector4d best_beta = Eigen::Vector4d::Zero();
   auto consider = [&](const Vec2 &o) {
     double a = 0, var = 0;
-    const double sse = fit(o, &a, &var);
+    Eigen::Vector4d beta;
+    const double sse = fit(o, &a, &var, &beta);
     // Only a darkening (A > 0) is a dot.
     if (a > 0 && sse < best) {
       best = sse;
       best_a = a;
       best_var = var;
       best_o = o;
+      best_beta = beta;
     }
   };
   const int steps = static_cast<int>(std::floor(radius / kTemplateCoarseStep));
@@ -664,8 +678,9 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
   }
   if (!std::isfinite(best)) return out;
   out.at_edge = best_o.norm() > radius - kTemplateCoarseStep;
+  // The coarse optimum is within half a coarse step of the fine one.
   const Vec2 coarse = best_o;
-  const int fine = static_cast<int>(std::lround(kTemplateCoarseStep / kTemplateFineStep));
+  const int fine = static_cast<int>(std::ceil(0.5 * kTemplateCoarseStep / kTemplateFineStep));
   for (int j = -fine; j <= fine; ++j) {
     for (int i = -fine; i <= fine; ++i) {
       const Vec2 o = coarse + Vec2(i * kTemplateFineStep, j * kTemplateFineStep);
@@ -674,6 +689,26 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
   }
   if (n <= 5 || !(best_var > 0)) return out;
   const double sigma2 = std::max(0.0, best) / (n - 4);
+  // The darkening above the plane along the ellipse's middle and in the
+  // strips 0.5-2.5 px beyond its ends (every window pixel, those left out
+  // of the fit too), as wide as the ellipse and a pixel.
+  double middle = 0, ends[2] = {0, 0};
+  int n_middle = 0, n_ends[2] = {0, 0};
+  for (const WindowPixel &p : all) {
+    const double cx = p.dx - best_o.x(), cy = p.dy - best_o.y();
+    const double u = shape.ux * cx + shape.uy * cy, v = -shape.uy * cx + shape.ux * cy;
+    if (std::abs(v) > shape.b + 0.5) continue;
+    const double above = p.d - (best_beta(0) + best_beta(1) * p.dx + best_beta(2) * p.dy);
+    if (std::abs(u) <= std::max(0.5, shape.a - 0.5)) {
+      middle += above;
+      ++n_middle;
+    } else if (std::abs(u) > shape.a + 0.5 && std::abs(u) <= shape.a + 2.5) {
+      ends[u > 0] += above;
+      ++n_ends[u > 0];
+    }
+  }
+  if (n_middle == 0 || n_ends[0] == 0 || n_ends[1] == 0 || !(middle > 0)) return out;
+  out.end_ratio = std::max(ends[0] / n_ends[0], ends[1] / n_ends[1]) / (middle / n_middle);
   out.ok = true;
   out.centre = at + best_o;
   out.contrast = best_a;
@@ -737,6 +772,7 @@ std::optional<DotDetection> AcceptedTemplate(const ExpectedPatch &patch,
   const TemplateFit fit =
       FitTemplate(patch.image, patch.skin, patch.at, shape, radius, sign, &intruded);
   if (!fit.ok || fit.at_edge || fit.snr < kTemplateMinSnr) return std::nullopt;
+  if (fit.end_ratio > kTemplateMaxEndRatio) return std::nullopt;
   if (fit.contrast < options.min_contrast || fit.contrast > kTemplateMaxContrast) {
     return std::nullopt;
   }

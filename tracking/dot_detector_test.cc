@@ -206,7 +206,8 @@ TEST(DotDetectorTest, FindsEdgeOnDotsBesideADarkRegionAndNoneAtItsEdge) {
 // to 0.3, under a pixel wide) on textured, shaded, noisy skin, each
 // searched for from a prediction up to 0.5 px off its centre with the
 // ellipse its normal predicts. Most are found and centred on their area
-// centroid; a search where no dot is painted finds nothing.
+// centroid; a search where no dot is painted finds nothing, also where a
+// crease runs along the predicted ellipse.
 TEST(DotDetectorTest, FindsExpectedThinDotsAndNothingOnBareSkin) {
   DotDetectorOptions options;
   for (int seed = 1; seed <= 3; ++seed) {
@@ -227,6 +228,11 @@ TEST(DotDetectorTest, FindsExpectedThinDotsAndNothingOnBareSkin) {
             if (i % 4 == 3) {  // every fourth place: bare skin
               bare.push_back(c);
               short_axes.emplace_back(-std::sin(angle), std::cos(angle));
+              // Every other one crossed by a crease along the predicted
+              // ellipse: a dark line five dots long and a pixel wide.
+              if (bare.size() % 2 == 0) {
+                PaintDot(&radiance, c, 5 * diameter, 1 / (5 * diameter), angle);
+              }
               continue;
             }
             PaintDot(&radiance, c, diameter, cos, angle);
