@@ -149,6 +149,17 @@ struct BlobEllipse {
   }
 };
 
+// The pixels within `reach` of `centre` along both axes (inclusive
+// bounds); false where they leave the image.
+bool ReachBox(const cv::Mat &image, const Vec2 &centre, double reach, int *x0, int *x1, int *y0,
+              int *y1) {
+  *x0 = static_cast<int>(std::floor(centre.x() - reach));
+  *x1 = static_cast<int>(std::ceil(centre.x() + reach));
+  *y0 = static_cast<int>(std::floor(centre.y() - reach));
+  *y1 = static_cast<int>(std::ceil(centre.y() + reach));
+  return *x0 >= 0 && *y0 >= 0 && *x1 < image.cols && *y1 < image.rows;
+}
+
 // Pixels of other blobs (labels other than 0 and `own`) are left out of
 // both the background ring and the centroid. The ring and the window
 // follow the blob's ellipse, so that a dot seen edge-on (a thin ellipse)
@@ -165,11 +176,8 @@ Refined RefineCentre(const cv::Mat &image, const cv::Mat &labels, int own, Vec2 
   // in tracking/dot_detector_test.cc); a round dot keeps the whole floor.
   const double floor = kTextureFloor * shape.b / shape.a;
   for (int iteration = 0; iteration < 3; ++iteration) {
-    const int x0 = static_cast<int>(std::floor(centre.x() - reach));
-    const int x1 = static_cast<int>(std::ceil(centre.x() + reach));
-    const int y0 = static_cast<int>(std::floor(centre.y() - reach));
-    const int y1 = static_cast<int>(std::ceil(centre.y() + reach));
-    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return out;
+    int x0, x1, y0, y1;
+    if (!ReachBox(image, centre, reach, &x0, &x1, &y0, &y1)) return out;
     std::vector<float> ring;
     std::vector<Eigen::Vector3d> ring_points;
     for (int y = y0; y <= y1; ++y) {
@@ -553,11 +561,8 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
   TemplateFit out;
   *max_intruded = 0;
   const double reach = shape.a + radius + kRingOut;
-  const int x0 = static_cast<int>(std::floor(at.x() - reach));
-  const int x1 = static_cast<int>(std::ceil(at.x() + reach));
-  const int y0 = static_cast<int>(std::floor(at.y() - reach));
-  const int y1 = static_cast<int>(std::ceil(at.y() + reach));
-  if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return out;
+  int x0, x1, y0, y1;
+  if (!ReachBox(image, at, reach, &x0, &x1, &y0, &y1)) return out;
   // The window: the ellipse grown by the search radius and the ring.
   std::vector<WindowPixel> all;
   std::vector<double> outside;  // d beyond the dot's reach (skin)

@@ -269,9 +269,9 @@ TEST(DotDetectorTest, FindsExpectedThinDotsAndNothingOnBareSkin) {
         // By the ellipse's width (measured, docs/tracking.md; the matched
         // filter of the predicted ellipse finds what no threshold does):
         // 0.45 px (3 px at cos 0.15) 98-99 % found (43-57 % by the centroid
-        // over the ellipse it replaced), median 0.08-0.10 px, p95 0.27-0.36
+        // over the ellipse it replaced), median 0.08-0.11 px, p95 0.28-0.39
         // px; 0.6 px 99-100 %, median 0.05-0.07, p95 0.24-0.27; from 0.8 px
-        // 99-100 %, median 0.03-0.045, p95 0.075-0.15.
+        // 99-100 %, median 0.03-0.05, p95 0.08-0.15.
         std::sort(errors.begin(), errors.end());
         const double width = diameter * cos;
         const double least = 0.95;
