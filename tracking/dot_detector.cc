@@ -618,14 +618,12 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
     dd += p.d * p.d;
   }
   const double inv = 1.0 / kTemplateSamples;
-  std::vector<double> t(window.size());
-  // The fit at centre offset o: its squared residual, A and A's variance
-  // factor ((X'X)^-1 at A).
+  // The fit at centre offset o: returns its squared residual; A, A's
+  // variance factor ((X'X)^-1 at A) and the coefficients (q0, q1, q2, A).
   auto fit = [&](const Vec2 &o, double *a, double *a_var, Eigen::Vector4d *coefficients) {
     Eigen::Vector3d pt = Eigen::Vector3d::Zero();
     double tt = 0, td = 0;
-    for (size_t i = 0; i < window.size(); ++i) {
-      const WindowPixel &p = window[i];
+    for (const WindowPixel &p : window) {
       const double cx = p.dx - o.x(), cy = p.dy - o.y();
       double coverage = 0;
       if (shape.Inside(cx, cy, 0.75)) {  // a pixel's corner lies within 0.71 px of its centre
@@ -637,7 +635,6 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
         }
         coverage = inside * inv * inv;
       }
-      t[i] = coverage;
       if (coverage == 0) continue;
       pt += coverage * Eigen::Vector3d(1, p.dx, p.dy);
       tt += coverage * coverage;
@@ -720,10 +717,6 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
   out.snr = best_a / std::sqrt(std::max(1e-12, sigma2 * best_var));
   return out;
 }
-
-}  // namespace
-
-namespace {
 
 // The patch of the frame round an expected dot: the search disc, the
 // largest dot, its ring and the closing's reach; as floats, with the skin
@@ -859,7 +852,7 @@ std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetector
   if (ambiguous) return std::nullopt;
   // A dot wider than that thresholds to a blob whatever its contrast: if
   // none was found, it is joined to a dark edge (a lid, a lip), whose
-  // darkening would pull the window's centroid.
+  // darkening the matched filter below would take for the dot's.
   if (dot_size_px * expected.axis_ratio > kGuidedMaxFaintWidth) return std::nullopt;
   // No blob: the dot too faint or too thin for a threshold on its pixels
   // (a 3 px dot at view cosine 0.2 is under a pixel wide): the matched
