@@ -131,9 +131,6 @@ constexpr double kTemplateMaxContrast = 1.5;
 // longer blob is the dot joined to their dark edge, whose centroid is not
 // the dot's.
 constexpr double kGuidedMaxLength = 1.3;
-// The predicted ellipse is searched for (without a blob) only where the
-// dot is expected at most this wide (px).
-constexpr double kGuidedMaxFaintWidth = 2;
 
 // The blob's shape: the ellipse of its binary second moments, scaled to
 // the blob's area (semi-axes a >= b, a b = area / pi; a = b = the
@@ -850,13 +847,12 @@ std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetector
 };
   if (std::optional<DotDetection> dot = blob_search()) return dot;
   if (ambiguous) return std::nullopt;
-  // A dot wider than that thresholds to a blob whatever its contrast: if
-  // none was found, it is joined to a dark edge (a lid, a lip), whose
-  // darkening the matched filter below would take for the dot's.
-  if (dot_size_px * expected.axis_ratio > kGuidedMaxFaintWidth) return std::nullopt;
   // No blob: the dot too faint or too thin for a threshold on its pixels
-  // (a 3 px dot at view cosine 0.2 is under a pixel wide): the matched
-  // filter of its predicted ellipse (FitTemplate).
+  // (a 3 px dot at view cosine 0.2 is under a pixel wide), or blurred and
+  // faint (the hard preset), or joined to a dark edge (a lid, a lip) into
+  // a blob the blob tests refuse: the matched filter of its predicted
+  // ellipse (FitTemplate), whose plane, left-out dark pixels and test of
+  // the strips beyond its ends keep an edge from being taken for the dot.
   return AcceptedTemplate(*patch, options, dot_size_px, expected,
                           std::min(expected.radius_px, kTemplateMaxOffset), sign);
 }

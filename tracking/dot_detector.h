@@ -106,7 +106,7 @@ struct ExpectedDot {
 // the blob's size and shape tested as by DetectDots, its centre refined
 // the same way; the dot must lie across its projected normal when thin.
 // Nothing when two blobs lie within the radius (ambiguous). With no blob,
-// a dot expected at most 2 px wide is sought by the matched filter of its
+// the dot is sought by the matched filter of its
 // predicted ellipse (a plane plus the ellipse's pixel coverage, fitted by
 // least squares over its centre within 1 px of the prediction), taken
 // where significant against the window's own texture and not a line
