@@ -623,7 +623,10 @@ TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
     for (const WindowPixel &p : window) {
       const double cx = p.dx - o.x(), cy = p.dy - o.y();
       double coverage = 0;
-      if (shape.Inside(cx, cy, 0.75)) {  // a pixel's corner lies within 0.71 px of its centre
+      if (shape.Inside(cx - 0.5, cy - 0.5, 0) && shape.Inside(cx + 0.5, cy - 0.5, 0) &&
+          shape.Inside(cx - 0.5, cy + 0.5, 0) && shape.Inside(cx + 0.5, cy + 0.5, 0)) {
+        coverage = 1;  // the ellipse is convex: the whole pixel is inside
+      } else if (shape.Inside(cx, cy, 0.75)) {  // a pixel's corner lies within 0.71 px of its centre
         int inside = 0;
         for (int sy = 0; sy < kTemplateSamples; ++sy) {
           for (int sx = 0; sx < kTemplateSamples; ++sx) {
