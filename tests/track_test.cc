@@ -103,13 +103,15 @@ TEST_F(TrackTest, FullDotsAreAccurateAndHiddenDotsUnreportedOnSeveralSeeds) {
     // Whole dots seen edge-on (issue 44; dots ~4 px here, so a dot at view
     // cosine 0.2 is under a pixel wide): those at 0.3-0.4 are named as
     // often as face-on ones, and those down to 0.15 are centred as well as
-    // full ones; the 0.15-0.3 bin (63-64 % named here with the search for
-    // expected dots, 53-56 % before it, 44-48 % before the detector's level
-    // against the closed skin) misses the issue's 99 % (docs/tracking.md).
+    // full ones; the 0.15-0.3 bin (65-70 % named here with the matched
+    // filter of the predicted ellipse, 63-64 % with the centroid over it,
+    // 53-56 % before the search for expected dots, 44-48 % before the
+    // detector's level against the closed skin) misses the issue's 99 %
+    // (docs/tracking.md); from 0.15 on 91.7-93.0 %, 0.3-0.4 96.9-97.4 %.
     ASSERT_TRUE(s.has_whole);
-    EXPECT_GE(s.whole_bins[1].Recall(), 0.6) << "seed " << seed;
-    EXPECT_GE(s.whole_bins[2].Recall(), 0.9) << "seed " << seed;
-    EXPECT_GE(s.whole_from_015.Recall(), 0.85) << "seed " << seed;
+    EXPECT_GE(s.whole_bins[1].Recall(), 0.63) << "seed " << seed;
+    EXPECT_GE(s.whole_bins[2].Recall(), 0.95) << "seed " << seed;
+    EXPECT_GE(s.whole_from_015.Recall(), 0.9) << "seed " << seed;
     EXPECT_LE(s.whole_from_015.median_px, 0.05) << "seed " << seed;
     const nlohmann::json diag = nlohmann::json::parse(ReadFile(out.parent_path() / "d.json"));
     EXPECT_EQ(diag["frames"].size(), 6u);

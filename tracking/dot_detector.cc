@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <opencv2/imgproc.hpp>
 
@@ -102,19 +103,34 @@ constexpr double kGuidedContrast = 0.5;
 // degrees of the expected one.
 constexpr double kGuidedOrientedRatio = 0.6;
 constexpr double kGuidedMaxAxisSine = 0.5;
-// A dot found by its predicted ellipse must be darker inside it than
-// all around it: each quarter of its ring at most this fraction of the
-// inside's mean darkening (a dark region, a crease, a lid's or a lip's
-// edge beside the dot would pull its centroid).
-constexpr double kGuidedMaxAround = 0.75;
+// A dot found by the matched filter of its predicted ellipse (FitTemplate)
+// must stand out of the window's texture by this many standard errors: the
+// statistic is the largest over ~100 centres tried, whose null maximum
+// under Gaussian noise stays under 4, and skin texture is not Gaussian.
+constexpr double kTemplateMinSnr = 5;
+// ... within this of the prediction (px): the tracker places an expected
+// dot within 0.1-0.3 px (median, docs/tracking.md); a faint optimum
+// farther off (on its search disc's rim: beyond 0.75 px) is the skin's
+// texture, a brow's hair or a lid's edge more often than the dot (measured
+// on fresh shots: 0 of ~950 fits within 0.75 px were over 1 px off any dot,
+// against a third of those farther).
+constexpr double kTemplateMaxOffset = 1.0;
+// ... and the strips beyond its ends at most this dark relative to its
+// middle (TemplateFit::end_ratio): a line (a crease, a lash, a lid's or a
+// lip's edge) along the predicted ellipse fits it as well as a dot, but
+// goes on beyond its ends, where a dot's anti-aliased tips and blur leave
+// a small fraction of its middle's darkening.
+constexpr double kTemplateMaxEndRatio = 0.5;
+// ... and its fitted paint darkening at most this: a relative darkening is
+// at most 1, with slack for a dot wider than predicted (the neutral's
+// normal is not the posed face's); a wide dark thing fitted with a thin
+// template reads darker.
+constexpr double kTemplateMaxContrast = 1.5;
 // The expected dot is at most this many diameters long (the blind levels
 // allow 1.9, for dots nearer the lens than most): beside a lid or a lip a
 // longer blob is the dot joined to their dark edge, whose centroid is not
 // the dot's.
 constexpr double kGuidedMaxLength = 1.3;
-// The predicted ellipse is searched for (without a blob) only where the
-// dot is expected at most this wide (px).
-constexpr double kGuidedMaxFaintWidth = 2;
 
 // The blob's shape: the ellipse of its binary second moments, scaled to
 // the blob's area (semi-axes a >= b, a b = area / pi; a = b = the
@@ -129,6 +145,17 @@ struct BlobEllipse {
     return u * u + v * v <= 1;
   }
 };
+
+// The pixels within `reach` of `centre` along both axes (inclusive
+// bounds); false where they leave the image.
+bool ReachBox(const cv::Mat &image, const Vec2 &centre, double reach, int *x0, int *x1, int *y0,
+              int *y1) {
+  *x0 = static_cast<int>(std::floor(centre.x() - reach));
+  *x1 = static_cast<int>(std::ceil(centre.x() + reach));
+  *y0 = static_cast<int>(std::floor(centre.y() - reach));
+  *y1 = static_cast<int>(std::ceil(centre.y() + reach));
+  return *x0 >= 0 && *y0 >= 0 && *x1 < image.cols && *y1 < image.rows;
+}
 
 // Pixels of other blobs (labels other than 0 and `own`) are left out of
 // both the background ring and the centroid. The ring and the window
@@ -146,11 +173,8 @@ Refined RefineCentre(const cv::Mat &image, const cv::Mat &labels, int own, Vec2 
   // in tracking/dot_detector_test.cc); a round dot keeps the whole floor.
   const double floor = kTextureFloor * shape.b / shape.a;
   for (int iteration = 0; iteration < 3; ++iteration) {
-    const int x0 = static_cast<int>(std::floor(centre.x() - reach));
-    const int x1 = static_cast<int>(std::ceil(centre.x() + reach));
-    const int y0 = static_cast<int>(std::floor(centre.y() - reach));
-    const int y1 = static_cast<int>(std::ceil(centre.y() + reach));
-    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return out;
+    int x0, x1, y0, y1;
+    if (!ReachBox(image, centre, reach, &x0, &x1, &y0, &y1)) return out;
     std::vector<float> ring;
     std::vector<Eigen::Vector3d> ring_points;
     for (int y = y0; y <= y1; ++y) {
@@ -482,97 +506,294 @@ std::vector<DotDetection> DetectDots(const cv::Mat &grey, const DotDetectorOptio
                 options.max_size * dot_size_px);
 }
 
-// The centroid of the relative darkening against the closed skin `skin`
-// over the ellipse `shape` grown by 1 px, above the texture floor (scaled
-// by the axis ratio as in RefineCentre), iterated with the ellipse
-// re-centred; with the mean darkening inside the ellipse (relative and
-// absolute) and the largest mean relative darkening of the four quarters
-// (beyond either end, beside either side) of a ring 1.5-3.5 px beyond it.
-struct SkinCentroid {
+namespace {
+
+// The matched filter for an expected thin dot (docs/tracking.md,
+// "Searching for an expected dot"): over a window round the prediction,
+// the relative darkening against the closed skin, d = (S - I) / S, is
+// modelled as a plane (the closing's bias over textured skin and what
+// shading it leaves) plus A times the pixel coverage T of the predicted
+// ellipse centred at the prediction + o:
+//     d(x) = q0 + q1 dx + q2 dy + A T(x - o) + noise,
+// A the paint's own relative darkening at full coverage. For each o on a
+// grid over the search disc the four are fitted by least squares; the o
+// of least squared residual is the maximum-likelihood centre (Gaussian
+// residuals), refined on a finer grid. Its significance is A over its
+// standard error, the residual's spread (skin texture and sensor noise
+// together) taken from the fit itself: a likelihood-ratio test against
+// "no dot here" that sees the whole ellipse, where a threshold on single
+// pixels sees a thin dot's 1-3 partly covered pixels one at a time.
+struct TemplateFit {
   bool ok = false;
-  Vec2 centre = Vec2::Zero();
-  double inside = 0, inside_step = 0, around = 0;
+  Vec2 centre = Vec2::Zero();  // patch coordinates (px)
+  double contrast = 0;         // A
+  double snr = 0;              // A / its standard error
+  bool at_edge = false;        // the best centre on the search disc's rim
+  // The darker of the strips beyond the ellipse's two ends, as a fraction
+  // of the darkening along its middle (both above the fitted plane): a
+  // dot ends where the ellipse does, a crease or a lid's edge goes on.
+  double end_ratio = 0;
 };
 
-SkinCentroid CentreOnSkin(const cv::Mat &image, const cv::Mat &skin, Vec2 centre,
-                          const BlobEllipse &shape, double sign) {
-  SkinCentroid out;
-  const double floor = kTextureFloor * shape.b / shape.a;
-  const double reach = shape.a + kRingOut;
-  for (int iteration = 0; iteration < 3; ++iteration) {
-    const int x0 = static_cast<int>(std::floor(centre.x() - reach));
-    const int x1 = static_cast<int>(std::ceil(centre.x() + reach));
-    const int y0 = static_cast<int>(std::floor(centre.y() - reach));
-    const int y1 = static_cast<int>(std::ceil(centre.y() + reach));
-    if (x0 < 0 || y0 < 0 || x1 >= image.cols || y1 >= image.rows) return SkinCentroid();
-    double sw = 0, sx = 0, sy = 0, in = 0, in_step = 0;
-    double ring[4] = {0, 0, 0, 0};
-    int n_in = 0, n_ring[4] = {0, 0, 0, 0};
-    for (int y = y0; y <= y1; ++y) {
-      const float *row = image.ptr<float>(y);
-      const float *b = skin.ptr<float>(y);
-      for (int x = x0; x <= x1; ++x) {
-        if (!(b[x] > 1e-4f)) continue;
-        const double dx = x - centre.x(), dy = y - centre.y();
-        const double step = sign * (b[x] - row[x]);
-        const double w = step / b[x];
-        if (shape.Inside(dx, dy, 0.5)) {
-          in += w;
-          in_step += step;
-          ++n_in;
-        } else if (shape.Inside(dx, dy, kRingOut) && !shape.Inside(dx, dy, 1.5)) {
-          // Quadrant of the ring: beyond either end, beside either side.
-          const double u = shape.ux * dx + shape.uy * dy, v = -shape.uy * dx + shape.ux * dy;
-          const int q = std::abs(u) / shape.a > std::abs(v) / shape.b ? (u > 0 ? 0 : 1)
-                                                                      : (v > 0 ? 2 : 3);
-          ring[q] += w;
-          ++n_ring[q];
-        }
-        if (!shape.Inside(dx, dy, 1.0)) continue;
-        const double v = std::max(0.0, w - floor);
-        sw += v;
-        sx += v * dx;
-        sy += v * dy;
-      }
+// Window pixels dark beyond this many robust sigmas of the window's skin
+// outside the dot's reach are another dark thing (a neighbour's dot, a
+// lid's or a lip's edge): left out of the fit, and counted per quarter.
+constexpr double kTemplateOutlierSigmas = 4;
+// The centre's grids (px): coarse over the search disc, then fine round
+// the coarse optimum.
+constexpr double kTemplateCoarseStep = 0.25;
+constexpr double kTemplateFineStep = 0.05;
+// Supersampling of the ellipse's pixel coverage (per axis): a 3 px dot at
+// view cosine 0.15 is 0.45 px wide, and 8 samples resolve that to 1/8 px.
+constexpr int kTemplateSamples = 8;
+
+struct WindowPixel {
+  double dx = 0, dy = 0;  // from the prediction (px)
+  double d = 0;           // relative darkening against the closed skin
+};
+
+TemplateFit FitTemplate(const cv::Mat &image, const cv::Mat &skin, Vec2 at,
+                        const BlobEllipse &shape, double radius, double sign,
+                        double *max_intruded) {
+  TemplateFit out;
+  *max_intruded = 0;
+  const double reach = shape.a + radius + kRingOut;
+  int x0, x1, y0, y1;
+  if (!ReachBox(image, at, reach, &x0, &x1, &y0, &y1)) return out;
+  // The window: the ellipse grown by the search radius and the ring.
+  std::vector<WindowPixel> all;
+  std::vector<double> outside;  // d beyond the dot's reach (skin)
+  for (int y = y0; y <= y1; ++y) {
+    const float *row = image.ptr<float>(y);
+    const float *b = skin.ptr<float>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const double dx = x - at.x(), dy = y - at.y();
+      if (!shape.Inside(dx, dy, radius + kRingOut) || !(b[x] > 1e-4f)) continue;
+      const double d = sign * (b[x] - row[x]) / b[x];
+      all.push_back({dx, dy, d});
+      if (!shape.Inside(dx, dy, radius + 1)) outside.push_back(d);
     }
-    if (!(sw > 0) || n_in == 0) return SkinCentroid();
-    out.inside = in / n_in;
-    out.inside_step = in_step / n_in;
-    out.around = 0;
-    for (int q = 0; q < 4; ++q) {
-      if (n_ring[q] == 0) return SkinCentroid();
-      out.around = std::max(out.around, ring[q] / n_ring[q]);
-    }
-    const Vec2 shift(sx / sw, sy / sw);
-    centre += shift;
-    if (shift.norm() < 1e-3) break;
   }
+  if (outside.size() < 16) return out;
+  std::vector<double> sorted = outside;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  for (double &v : sorted) v = std::abs(v - median);
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double spread = std::max(1e-4, 1.4826 * sorted[sorted.size() / 2]);
+  // Dark intrusions beyond the dot's reach are left out, counted per
+  // quarter (beyond either end, beside either side).
+  std::vector<WindowPixel> window;
+  int quarter_all[4] = {0, 0, 0, 0}, quarter_dark[4] = {0, 0, 0, 0};
+  for (const WindowPixel &p : all) {
+    if (shape.Inside(p.dx, p.dy, radius + 1)) {
+      window.push_back(p);
+      continue;
+    }
+    const double u = shape.ux * p.dx + shape.uy * p.dy, v = -shape.uy * p.dx + shape.ux * p.dy;
+    const int q = std::abs(u) / shape.a > std::abs(v) / shape.b ? (u > 0 ? 0 : 1) : (v > 0 ? 2 : 3);
+    ++quarter_all[q];
+    if (p.d - median > kTemplateOutlierSigmas * spread) {
+      ++quarter_dark[q];
+    } else {
+      window.push_back(p);
+    }
+  }
+  for (int q = 0; q < 4; ++q) {
+    if (quarter_all[q] == 0) return out;
+    *max_intruded = std::max(*max_intruded, static_cast<double>(quarter_dark[q]) / quarter_all[q]);
+  }
+  const int n = static_cast<int>(window.size());
+  // The plane's part of the normal equations is the same for every o.
+  Eigen::Matrix3d pp = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d pd = Eigen::Vector3d::Zero();
+  double dd = 0;
+  for (const WindowPixel &p : window) {
+    const Eigen::Vector3d x(1, p.dx, p.dy);
+    pp += x * x.transpose();
+    pd += x * p.d;
+    dd += p.d * p.d;
+  }
+  const double inv = 1.0 / kTemplateSamples;
+  // The fit at centre offset o: returns its squared residual; A, A's
+  // variance factor ((X'X)^-1 at A) and the coefficients (q0, q1, q2, A).
+  auto fit = [&](const Vec2 &o, double *a, double *a_var, Eigen::Vector4d *coefficients) {
+    Eigen::Vector3d pt = Eigen::Vector3d::Zero();
+    double tt = 0, td = 0;
+    for (const WindowPixel &p : window) {
+      const double cx = p.dx - o.x(), cy = p.dy - o.y();
+      double coverage = 0;
+      if (shape.Inside(cx - 0.5, cy - 0.5, 0) && shape.Inside(cx + 0.5, cy - 0.5, 0) &&
+          shape.Inside(cx - 0.5, cy + 0.5, 0) && shape.Inside(cx + 0.5, cy + 0.5, 0)) {
+        coverage = 1;  // the ellipse is convex: the whole pixel is inside
+      } else if (shape.Inside(cx, cy, 0.75)) {  // a pixel's corner lies within 0.71 px of its centre
+        int inside = 0;
+        for (int sy = 0; sy < kTemplateSamples; ++sy) {
+          for (int sx = 0; sx < kTemplateSamples; ++sx) {
+            inside += shape.Inside(cx - 0.5 + (sx + 0.5) * inv, cy - 0.5 + (sy + 0.5) * inv, 0);
+          }
+        }
+        coverage = inside * inv * inv;
+      }
+      if (coverage == 0) continue;
+      pt += coverage * Eigen::Vector3d(1, p.dx, p.dy);
+      tt += coverage * coverage;
+      td += coverage * p.d;
+    }
+    Eigen::Matrix4d m;
+    m.topLeftCorner<3, 3>() = pp;
+    m.topRightCorner<3, 1>() = pt;
+    m.bottomLeftCorner<1, 3>() = pt.transpose();
+    m(3, 3) = tt;
+    Eigen::Vector4d rhs;
+    rhs << pd, td;
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(m);
+    const Eigen::Vector4d beta = ldlt.solve(rhs);
+    if (!beta.allFinite() || !(tt > 0)) return std::numeric_limits<double>::infinity();
+    *a = beta(3);
+    *a_var = ldlt.solve(Eigen::Vector4d::UnitW())(3);
+    *coefficients = beta;
+    return dd - beta.dot(rhs);
+  };
+  double best = std::numeric_limits<double>::infinity(), best_a = 0, best_var = 0;
+  Vec2 best_o = Vec2::Zero();
+  Eigen::Vector4d best_beta = Eigen::Vector4d::Zero();
+  auto consider = [&](const Vec2 &o) {
+    double a = 0, var = 0;
+    Eigen::Vector4d beta;
+    const double sse = fit(o, &a, &var, &beta);
+    // Only a darkening (A > 0) is a dot.
+    if (a > 0 && sse < best) {
+      best = sse;
+      best_a = a;
+      best_var = var;
+      best_o = o;
+      best_beta = beta;
+    }
+  };
+  const int steps = static_cast<int>(std::floor(radius / kTemplateCoarseStep));
+  for (int j = -steps; j <= steps; ++j) {
+    for (int i = -steps; i <= steps; ++i) {
+      const Vec2 o(i * kTemplateCoarseStep, j * kTemplateCoarseStep);
+      if (o.norm() <= radius) consider(o);
+    }
+  }
+  if (!std::isfinite(best)) return out;
+  out.at_edge = best_o.norm() > radius - kTemplateCoarseStep;
+  // The coarse optimum is within half a coarse step of the fine one.
+  const Vec2 coarse = best_o;
+  const int fine = static_cast<int>(std::ceil(0.5 * kTemplateCoarseStep / kTemplateFineStep));
+  for (int j = -fine; j <= fine; ++j) {
+    for (int i = -fine; i <= fine; ++i) {
+      const Vec2 o = coarse + Vec2(i * kTemplateFineStep, j * kTemplateFineStep);
+      if (o.norm() <= radius) consider(o);
+    }
+  }
+  if (n <= 5 || !(best_var > 0)) return out;
+  const double sigma2 = std::max(0.0, best) / (n - 4);
+  // The darkening above the plane along the ellipse's middle and in the
+  // strips 0.5-2.5 px beyond its ends (every window pixel, those left out
+  // of the fit too), as wide as the ellipse and a pixel.
+  double middle = 0, ends[2] = {0, 0};
+  int n_middle = 0, n_ends[2] = {0, 0};
+  for (const WindowPixel &p : all) {
+    const double cx = p.dx - best_o.x(), cy = p.dy - best_o.y();
+    const double u = shape.ux * cx + shape.uy * cy, v = -shape.uy * cx + shape.ux * cy;
+    if (std::abs(v) > shape.b + 0.5) continue;
+    const double above = p.d - (best_beta(0) + best_beta(1) * p.dx + best_beta(2) * p.dy);
+    if (std::abs(u) <= std::max(0.5, shape.a - 0.5)) {
+      middle += above;
+      ++n_middle;
+    } else if (std::abs(u) > shape.a + 0.5 && std::abs(u) <= shape.a + 2.5) {
+      ends[u > 0] += above;
+      ++n_ends[u > 0];
+    }
+  }
+  if (n_middle == 0 || n_ends[0] == 0 || n_ends[1] == 0 || !(middle > 0)) return out;
+  out.end_ratio = std::max(ends[0] / n_ends[0], ends[1] / n_ends[1]) / (middle / n_middle);
   out.ok = true;
-  out.centre = centre;
+  out.centre = at + best_o;
+  out.contrast = best_a;
+  out.snr = best_a / std::sqrt(std::max(1e-12, sigma2 * best_var));
   return out;
 }
 
-std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetectorOptions &options,
-                                          double dot_size_px, const ExpectedDot &expected) {
-  const double sign = options.polarity == "bright" ? -1 : 1;
-  // The patch holds the search disc, the largest dot, its ring and the
-  // closing's reach.
+// The patch of the frame round an expected dot: the search disc, the
+// largest dot, its ring and the closing's reach; as floats, with the skin
+// without the dots (the closing) and the prediction in its coordinates.
+struct ExpectedPatch {
+  cv::Rect rect;
+  cv::Mat image, skin;
+  Vec2 at = Vec2::Zero();
+};
+
+std::optional<ExpectedPatch> MakeExpectedPatch(const cv::Mat &grey,
+                                               const DotDetectorOptions &options,
+                                               double dot_size_px, const ExpectedDot &expected,
+                                               double sign) {
   const int half = static_cast<int>(std::ceil(expected.radius_px +
                                               0.5 * options.max_size * dot_size_px + kRingOut +
                                               2 + ClosingSide(dot_size_px)));
-  const cv::Rect rect(static_cast<int>(std::lround(expected.pixel.x())) - half,
+  ExpectedPatch out;
+  out.rect = cv::Rect(static_cast<int>(std::lround(expected.pixel.x())) - half,
                       static_cast<int>(std::lround(expected.pixel.y())) - half, 2 * half + 1,
                       2 * half + 1);
+  const cv::Rect &rect = out.rect;
   const int border = options.border_px;
   if (rect.x < border || rect.y < border || rect.x + rect.width > grey.cols - border ||
       rect.y + rect.height > grey.rows - border) {
     return std::nullopt;
   }
   const cv::Mat patch = grey(rect);
-  cv::Mat image = AsFloat(patch);
-  if (image.data == patch.data) image = image.clone();
-  const cv::Mat skin = ClosedSkin(patch, dot_size_px, sign);
-  const Vec2 at = expected.pixel - Vec2(rect.x, rect.y);
+  out.image = AsFloat(patch);
+  if (out.image.data == patch.data) out.image = out.image.clone();
+  out.skin = ClosedSkin(patch, dot_size_px, sign);
+  out.at = expected.pixel - Vec2(rect.x, rect.y);
+  return out;
+}
+
+// The matched filter of the predicted ellipse (long axis the dot's
+// diameter across the projected normal, short axis times the view cosine)
+// within `radius` of the prediction, taken where it is significant
+// against the window's own texture, of a paint's darkening, its optimum
+// inside the search disc, and the window's skin not cut by a dark edge.
+std::optional<DotDetection> AcceptedTemplate(const ExpectedPatch &patch,
+                                             const DotDetectorOptions &options,
+                                             double dot_size_px, const ExpectedDot &expected,
+                                             double radius, double sign) {
+  BlobEllipse shape;
+  shape.a = 0.5 * dot_size_px;
+  shape.b = shape.a * std::clamp(expected.axis_ratio, 1 / options.max_elongation, 1.0);
+  shape.ux = -expected.short_axis.y();
+  shape.uy = expected.short_axis.x();
+  double intruded = 0;
+  const TemplateFit fit =
+      FitTemplate(patch.image, patch.skin, patch.at, shape, radius, sign, &intruded);
+  if (!fit.ok || fit.at_edge || fit.snr < kTemplateMinSnr) return std::nullopt;
+  if (fit.end_ratio > kTemplateMaxEndRatio) return std::nullopt;
+  if (fit.contrast < options.min_contrast || fit.contrast > kTemplateMaxContrast) {
+    return std::nullopt;
+  }
+  if (intruded > kMaxRingIntrusion) return std::nullopt;
+  Refined refined;
+  refined.ok = true;
+  refined.centre = fit.centre;
+  refined.contrast = fit.contrast;
+  refined.elongation = shape.a / shape.b;
+  return MakeDetection(refined, Vec2(patch.rect.x, patch.rect.y), 2 * shape.a);
+}
+
+}  // namespace
+
+std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetectorOptions &options,
+                                          double dot_size_px, const ExpectedDot &expected) {
+  const double sign = options.polarity == "bright" ? -1 : 1;
+  const std::optional<ExpectedPatch> patch =
+      MakeExpectedPatch(grey, options, dot_size_px, expected, sign);
+  if (!patch) return std::nullopt;
+  const cv::Rect &rect = patch->rect;
+  const cv::Mat &image = patch->image, &skin = patch->skin;
+  const Vec2 &at = patch->at;
   const double noise = EstimateNoise(image, 1);
   bool ambiguous = false;
   auto blob_search = [&]() -> std::optional<DotDetection> {
@@ -629,35 +850,14 @@ std::optional<DotDetection> DetectDotNear(const cv::Mat &grey, const DotDetector
 };
   if (std::optional<DotDetection> dot = blob_search()) return dot;
   if (ambiguous) return std::nullopt;
-  // A dot wider than that thresholds to a blob whatever its contrast: if
-  // none was found, it is joined to a dark edge (a lid, a lip), whose
-  // darkening would pull the window's centroid.
-  if (dot_size_px * expected.axis_ratio > kGuidedMaxFaintWidth) return std::nullopt;
   // No blob: the dot too faint or too thin for a threshold on its pixels
-  // (a 3 px dot at view cosine 0.2 is under a pixel wide). Its ellipse is
-  // predicted (long axis the dot's diameter across the projected normal,
-  // short axis times the view cosine): the darkening against the closed
-  // skin is centred in that window, and taken for the dot where it is
-  // strong inside and not around it.
-  BlobEllipse shape;
-  shape.a = 0.5 * dot_size_px;
-  shape.b = shape.a * std::clamp(expected.axis_ratio, 1 / options.max_elongation, 1.0);
-  shape.ux = -expected.short_axis.y();
-  shape.uy = expected.short_axis.x();
-  const SkinCentroid fit = CentreOnSkin(image, skin, at, shape, sign);
-  if (!fit.ok) return std::nullopt;
-  if ((fit.centre - at).norm() > expected.radius_px) return std::nullopt;
-  const double step = std::max(options.min_step, kNoiseSigmas * noise);
-  if (fit.inside < options.min_contrast || fit.inside_step < kGuidedContrast * step) {
-    return std::nullopt;
-  }
-  if (fit.around > kGuidedMaxAround * fit.inside) return std::nullopt;
-  Refined refined;
-  refined.ok = true;
-  refined.centre = fit.centre;
-  refined.contrast = fit.inside;
-  refined.elongation = shape.a / shape.b;
-  return MakeDetection(refined, Vec2(rect.x, rect.y), 2 * shape.a);
+  // (a 3 px dot at view cosine 0.2 is under a pixel wide), or blurred and
+  // faint (the hard preset), or joined to a dark edge (a lid, a lip) into
+  // a blob the blob tests refuse: the matched filter of its predicted
+  // ellipse (FitTemplate), whose plane, left-out dark pixels and test of
+  // the strips beyond its ends keep an edge from being taken for the dot.
+  return AcceptedTemplate(*patch, options, dot_size_px, expected,
+                          std::min(expected.radius_px, kTemplateMaxOffset), sign);
 }
 
 double MeasureDotSize(const cv::Mat &grey, const DotDetectorOptions &options) {

@@ -105,7 +105,12 @@ struct ExpectedDot {
 // contrast and noise margin (the search looks only where a dot is due),
 // the blob's size and shape tested as by DetectDots, its centre refined
 // the same way; the dot must lie across its projected normal when thin.
-// Nothing when no blob or two blobs lie within the radius (ambiguous).
+// Nothing when two blobs lie within the radius (ambiguous). With no blob,
+// the dot is sought by the matched filter of its
+// predicted ellipse (a plane plus the ellipse's pixel coverage, fitted by
+// least squares over its centre within 1 px of the prediction), taken
+// where significant against the window's own texture and not a line
+// running on beyond the ellipse's ends.
 std::optional<DotDetection> DetectDotNear(const cv::Mat& grey, const DotDetectorOptions& options,
                                           double dot_size_px, const ExpectedDot& expected);
 
