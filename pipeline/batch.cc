@@ -15,11 +15,11 @@
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
+#include "core/calibration.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/hash.h"
 #include "core/text.h"
-#include "core/calibration.h"
 #include "pipeline/subprocess.h"
 #include "pipeline/svg_plot.h"
 #include "pipeline/track_chunks.h"
