@@ -1,5 +1,5 @@
 // `hmc batch --takes DIR_OR_LIST --actor DIR --calibration CAL --out DAY
-// [--scheduler local|slurm] [--jobs N] [--config FILE]`: a shoot day of
+// [--scheduler local|slurm] [--jobs N] [--chunk-frames N] [--config FILE]`: a shoot day of
 // takes, one `hmc run` workspace per take under DAY/<take>/, on this
 // machine or as SLURM jobs (pipeline/batch.h, pipeline/batch_slurm.h,
 // docs/farm.md). Also `hmc batch --status DAY`, `--wait`, and the per-take

@@ -46,8 +46,9 @@ void BatchOptions::Register(OptionFields* fields) {
   fields->Add("extra", &slurm_extra, "More sbatch arguments for every job (\"--qos=low\")");
   fields->SetGroup("");
   fields->Add("chunk_frames", &chunk_frames,
-              "Track a take longer than this in chunks of this many frames, each a task of its "
-              "own, then merge them (0 = one task per take; docs/farm.md)")
+              "--chunk-frames N: track a take longer than N frames in chunks of N frames, each "
+              "a task of its own; the take's run then merges them and runs the later stages on "
+              "the whole take (0 = one task per take; docs/farm.md)")
       .AtLeast(0);
   fields->Add("chunk_overlap", &chunk_overlap,
               "Frames a chunk also tracks before its own, so that its labels are settled")
