@@ -1,5 +1,5 @@
 // `hmc batch --takes DIR_OR_LIST --actor DIR --calibration CAL --out DAY
-// [--scheduler local|slurm] [--jobs N] [--config FILE]`: a shoot day of
+// [--scheduler local|slurm] [--jobs N] [--chunk-frames N] [--config FILE]`: a shoot day of
 // takes, one `hmc run` workspace per take under DAY/<take>/, on this
 // machine or as SLURM jobs (pipeline/batch.h, pipeline/batch_slurm.h,
 // docs/farm.md). Also `hmc batch --status DAY`, `--wait`, and the per-take
@@ -60,7 +60,7 @@ class DayLock {
 int Status(const fs::path& day, bool wait) {
   const SlurmJobs jobs = ReadSlurmJobs(day);
   if (wait) WaitSlurmJobs(jobs);
-  const std::string scheduler = jobs.array.empty() ? "local" : "slurm";
+  const std::string scheduler = jobs.index.empty() ? "local" : "slurm";
   const std::map<std::string, std::string> queue = SlurmTakeQueue(jobs);
   const nlohmann::json batch = CollectBatch(day, scheduler, [&](const std::string& take) {
     const auto it = queue.find(take);
@@ -69,7 +69,7 @@ int Status(const fs::path& day, bool wait) {
   // The jobs have ended: batch.json and the day report as they stand now
   // (the report job's run may have been cancelled, or preceded a task's
   // end).
-  if (wait && !jobs.array.empty()) WriteDayFiles(day, batch);
+  if (wait && !jobs.index.empty()) WriteDayFiles(day, batch);
   std::fputs(StatusTable(batch).c_str(), stdout);
   std::fputs(SlurmQueueText(jobs).c_str(), stdout);
   int failed = 0;
@@ -104,7 +104,8 @@ HMC_COMMAND(Batch, "", "batch",
                 "submitting); exit 0 when every take is done")
       ->group(other);
   app->add_option("--take", cmd->take,
-                  "With --out DAY: run that one take of the day (what each job runs)")
+                  "With --out DAY: run that one take of the day (what each job runs), or one "
+                  "part of a chunked take: NAME@calibrate, NAME@chunkK")
       ->group(other);
   app->add_flag("--day_report", cmd->day_report,
                 "With --out DAY: write batch.json and report.html from the workspaces (the "
@@ -158,6 +159,7 @@ HMC_COMMAND(Batch, "", "batch",
     plan.calibration = fs::absolute(cmd->calibration).lexically_normal().string();
     plan.takes = ReadTakes(cmd->takes);
     plan.run_config = WriteRunConfig(day, binding->config_file());
+    PlanChunks(&plan, cmd->options.chunk_frames, cmd->options.chunk_overlap);
     WritePlan(day, plan);
     if (cmd->plan) {
       const std::string hmc = SelfExecutable().string();
@@ -165,10 +167,15 @@ HMC_COMMAND(Batch, "", "batch",
       for (const std::string& arg : IndexArgs(day, plan)) index += " '" + arg + "'";
       std::printf("XDG_CACHE_HOME='%s' '%s'%s\n", DayIndexCache(day).c_str(), hmc.c_str(),
                   index.c_str());
+      // A chunked take's units in their order: each after the ones
+      // before it (UnitDependencies).
       for (const Take& take : plan.takes) {
         if (TakeIsComplete(day, plan, take)) continue;
-        std::printf("'%s' batch --out '%s' --take '%s'\n", hmc.c_str(), day.c_str(),
-                    take.name.c_str());
+        for (const std::string& unit : TakeUnits(take)) {
+          if (unit != take.name && UnitIsComplete(day, plan, unit)) continue;
+          std::printf("'%s' batch --out '%s' --take '%s'\n", hmc.c_str(), day.c_str(),
+                      unit.c_str());
+        }
       }
       std::printf("'%s' batch --out '%s' --day_report\n", hmc.c_str(), day.c_str());
       return 0;

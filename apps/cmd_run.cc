@@ -40,6 +40,10 @@ HMC_COMMAND(Run, "", "run",
                   "track_fixes.csv from hmc review: the track stage applies them (with --from "
                   "track, every later stage is redone)")
       ->group(data);
+  app->add_option("--track_chunks", input->track_chunks,
+                  "The take's frame chunks tracked apart (written by hmc batch --chunk-frames; "
+                  "docs/farm.md): the track stage merges their own frames instead of tracking")
+      ->group(data);
   OptionFields fields;
   options->Register(&fields);
   // --config: the run config (configs/run.yaml): `run:` holds these
@@ -72,7 +76,8 @@ HMC_COMMAND(Run, "", "run",
                         {input->actor, "--actor"},
                         {input->calibration, "--calibration"},
                         {input->config, "--config"},
-                        {input->fixes, "--fixes"}});
+                        {input->fixes, "--fixes"},
+                        {input->track_chunks, "--track_chunks"}});
     StageTimer timer("run");
     // Every stage loads the actor; parse it once for the run (each stage
     // still reads and hashes the files: core/actor_cache.h).

@@ -8,18 +8,22 @@
 #include <chrono>
 #include <ctime>
 #include <map>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
+#include "core/calibration.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/hash.h"
 #include "core/text.h"
 #include "pipeline/subprocess.h"
 #include "pipeline/svg_plot.h"
+#include "pipeline/track_chunks.h"
+#include "tracking/footage_reader.h"
 
 namespace hmc {
 
@@ -41,6 +45,14 @@ void BatchOptions::Register(OptionFields* fields) {
   fields->Add("account", &slurm_account, "sbatch --account (\"\" = none)");
   fields->Add("extra", &slurm_extra, "More sbatch arguments for every job (\"--qos=low\")");
   fields->SetGroup("");
+  fields->Add("chunk_frames", &chunk_frames,
+              "--chunk-frames N: track a take longer than N frames in chunks of N frames, each "
+              "a task of its own; the take's run then merges them and runs the later stages on "
+              "the whole take (0 = one task per take; docs/farm.md)")
+      .AtLeast(0);
+  fields->Add("chunk_overlap", &chunk_overlap,
+              "Frames a chunk also tracks before its own, so that its labels are settled")
+      .AtLeast(0);
 }
 
 bool BatchOptions::Check() const {
@@ -127,7 +139,7 @@ std::vector<Take> ReadTakes(const fs::path& takes) {
         continue;
       }
       CheckTakeName(f.filename().string(), f, 0);
-      out.push_back({f.filename().string(), fs::absolute(f).lexically_normal().string(), "", ""});
+      out.push_back({f.filename().string(), fs::absolute(f).lexically_normal().string(), "", "", {}});
     }
     if (out.empty()) {
       ThrowInputError(takes, 0, "no sub-folder holds footage (cam0 and cam1 videos or image "
@@ -238,12 +250,14 @@ void WritePlan(const fs::path& day, const BatchPlan& plan) {
     takes.push_back({{"name", t.name},
                      {"shot", t.shot},
                      {"frames", t.frames},
-                     {"calibration", t.calibration}});
+                     {"calibration", t.calibration},
+                     {"chunks", t.chunks}});
   }
   const nlohmann::json json = {{"stage", "batch"},
                                {"actor", plan.actor},
                                {"calibration", plan.calibration},
                                {"run_config", plan.run_config},
+                               {"chunk_overlap", plan.chunk_overlap},
                                {"takes", takes}};
   EnsureDirectory(day / ".batch");
   WriteFileAtomic(day / ".batch" / "plan.json", json.dump(1) + "\n");
@@ -262,10 +276,12 @@ BatchPlan ReadPlan(const fs::path& day) {
     plan.actor = json.at("actor").get<std::string>();
     plan.calibration = json.at("calibration").get<std::string>();
     plan.run_config = json.at("run_config").get<std::string>();
+    plan.chunk_overlap = json.value("chunk_overlap", 0);
     for (const auto& t : json.at("takes")) {
       plan.takes.push_back({t.at("name").get<std::string>(), t.at("shot").get<std::string>(),
                             t.at("frames").get<std::string>(),
-                            t.at("calibration").get<std::string>()});
+                            t.at("calibration").get<std::string>(),
+                            t.value("chunks", std::vector<std::pair<int, int>>())});
     }
   } catch (const nlohmann::json::exception& e) {
     ThrowInputError(file, 0, "damaged batch plan: {}", e.what());
@@ -328,6 +344,134 @@ std::vector<std::string> TakeRunArgs(const fs::path& day, const BatchPlan& plan,
   return args;
 }
 
+void PlanChunks(BatchPlan* plan, int chunk_frames, int chunk_overlap) {
+  plan->chunk_overlap = chunk_overlap;
+  // The footage options the takes' runs get from the run config.
+  FootageOptions footage;
+  if (!plan->run_config.empty()) {
+    const YAML::Node run = LoadYamlFile(plan->run_config)["run"];
+    if (run && run.IsMap()) {
+      for (const auto& [key, field] : {std::pair{"cam0", &footage.cam0},
+                                       std::pair{"cam1", &footage.cam1},
+                                       std::pair{"frames", &footage.frames}}) {
+        if (run[key]) *field = run[key].as<std::string>();
+      }
+      if (run["offset1"]) footage.offset1 = run["offset1"].as<int>();
+    }
+  }
+  for (Take& take : plan->takes) {
+    take.chunks.clear();
+    if (chunk_frames <= 0) continue;
+    int first = 0, last = 0;
+    try {
+      FootageOptions options = footage;
+      if (!take.frames.empty()) options.frames = take.frames;
+      const HelmetRig rig =
+          ReadCalibration(take.calibration.empty() ? plan->calibration : take.calibration);
+      std::vector<std::string> names;
+      for (const HelmetCamera& c : rig.cameras) names.push_back(c.name);
+      const FootageReader reader(take.shot, names, options);
+      first = reader.first_frame();
+      last = reader.last_frame();
+    } catch (const std::exception& e) {
+      spdlog::warn("batch: take {}: {}: not chunked", take.name, e.what());
+      continue;
+    }
+    if (last - first + 1 <= chunk_frames) continue;
+    for (int a = first; a <= last; a += chunk_frames) {
+      take.chunks.emplace_back(a, std::min(last, a + chunk_frames - 1));
+    }
+    spdlog::info("batch: take {} (frames {}-{}) in {} chunks of {} frames", take.name, first, last,
+                 take.chunks.size(), chunk_frames);
+  }
+}
+
+std::vector<std::string> TakeUnits(const Take& take) {
+  if (take.chunks.empty()) return {take.name};
+  std::vector<std::string> units = {take.name + "@calibrate"};
+  for (size_t k = 0; k < take.chunks.size(); ++k) units.push_back(fmt::format("{}@chunk{}", take.name, k));
+  units.push_back(take.name);
+  return units;
+}
+
+std::pair<std::string, std::string> SplitUnit(const std::string& unit) {
+  const size_t at = unit.find('@');
+  if (at == std::string::npos) return {unit, ""};
+  return {unit.substr(0, at), unit.substr(at + 1)};
+}
+
+std::vector<std::string> UnitDependencies(const BatchPlan& plan, const std::string& unit) {
+  const auto [name, part] = SplitUnit(unit);
+  const Take* take = plan.Find(name);
+  if (take == nullptr || take->chunks.empty() || part == "calibrate") return {};
+  if (!part.empty()) return {name + "@calibrate"};
+  std::vector<std::string> units = TakeUnits(*take);
+  units.pop_back();
+  return units;
+}
+
+namespace {
+
+// A chunk's workspace: DAY/.batch/chunks/<take>/<K>.
+fs::path ChunkWork(const fs::path& day, const std::string& take, size_t k) {
+  return fs::absolute(day / ".batch" / "chunks" / take / std::to_string(k)).lexically_normal();
+}
+
+// The list of a chunked take's chunks its run merges (pipeline/track_chunks.h).
+fs::path ChunkList(const fs::path& day, const std::string& take) {
+  return fs::absolute(day / ".batch" / "chunks" / take / "chunks.json").lexically_normal();
+}
+
+std::vector<TrackChunk> TakeChunks(const fs::path& day, const BatchPlan& plan, const Take& take) {
+  std::vector<TrackChunk> chunks;
+  const int first = take.chunks.empty() ? 0 : take.chunks.front().first;
+  for (size_t k = 0; k < take.chunks.size(); ++k) {
+    const auto [a, b] = take.chunks[k];
+    chunks.push_back({ChunkWork(day, take.name, k).string(), a, b,
+                      std::max(first, a - plan.chunk_overlap)});
+  }
+  return chunks;
+}
+
+}  // namespace
+
+std::vector<std::string> UnitRunArgs(const fs::path& day, const BatchPlan& plan,
+                                     const std::string& unit) {
+  const auto [name, part] = SplitUnit(unit);
+  const Take* take = plan.Find(name);
+  int chunk = -1;
+  if (take != nullptr && part.rfind("chunk", 0) == 0 && ParseInt(part.substr(5), &chunk) &&
+      (chunk < 0 || chunk >= static_cast<int>(take->chunks.size()))) {
+    chunk = -2;
+  }
+  if (take == nullptr || (!part.empty() && take->chunks.empty()) ||
+      (!part.empty() && part != "calibrate" && chunk < 0)) {
+    throw InputError(fmt::format("{}: the day has no take or chunk '{}'",
+                                 (day / ".batch" / "plan.json").string(), unit));
+  }
+  std::vector<std::string> args = TakeRunArgs(day, plan, *take);
+  if (take->chunks.empty()) return args;
+  if (part.empty()) {
+    args.insert(args.end(), {"--track_chunks", ChunkList(day, name).string()});
+  } else if (part == "calibrate") {
+    args.insert(args.end(), {"--to", "calibrate"});
+  } else {
+    // The chunk's frames and the overlap before them, tracked with the
+    // take's calibration (its first pass) as it is.
+    const TrackChunk c = TakeChunks(day, plan, *take)[chunk];
+    args = {"run",          "--shot",
+            take->shot,     "--actor",
+            plan.actor,     "--calibration",
+            fs::absolute(day / name / "calibrate" / "calibration.yaml").lexically_normal().string(),
+            "--calibrate",  "false",
+            "--out",        c.work};
+    if (!plan.run_config.empty()) args.insert(args.end(), {"--config", plan.run_config});
+    args.insert(args.end(), {"--frames", fmt::format("{}:{}", c.tracked_first, c.last), "--to",
+                             "track"});
+  }
+  return args;
+}
+
 fs::path TakeLog(const fs::path& day, const std::string& take) {
   return day / "logs" / (take + ".log");
 }
@@ -343,9 +487,15 @@ namespace {
 // folder and the actor package by path, size and modification time (cheap:
 // no footage is read; hmc run itself then compares contents stage by
 // stage).
-std::string TakeInputs(const BatchPlan& plan, const Take& take) {
+std::string TakeInputs(const fs::path& day, const BatchPlan& plan, const Take& take,
+                       const std::string& unit) {
   ContentHasher hash;
   std::error_code ec;
+  // A chunk tracks with its take's first pass's calibration.
+  if (SplitUnit(unit).second.rfind("chunk", 0) == 0) {
+    const fs::path calibration = day / take.name / "calibrate" / "calibration.yaml";
+    if (fs::is_regular_file(calibration, ec)) hash.Update(HashHex(HashFile(calibration)));
+  }
   for (const std::string& file :
        {plan.run_config, take.calibration.empty() ? plan.calibration : take.calibration}) {
     if (!file.empty() && fs::is_regular_file(file, ec)) hash.Update(HashHex(HashFile(file)));
@@ -367,25 +517,33 @@ std::string TakeInputs(const BatchPlan& plan, const Take& take) {
 
 }  // namespace
 
-bool TakeIsComplete(const fs::path& day, const BatchPlan& plan, const Take& take) {
-  const nlohmann::json state = ReadTakeState(day, take.name);
+bool UnitIsComplete(const fs::path& day, const BatchPlan& plan, const std::string& unit) {
+  const nlohmann::json state = ReadTakeState(day, unit);
+  const std::vector<std::string> args = UnitRunArgs(day, plan, unit);
+  // The unit's workspace: the value of --out.
+  const auto out = std::find(args.begin(), args.end(), "--out");
   std::error_code ec;
   return state.is_object() && state.value("state", "") == "done" &&
-         state.value("args", nlohmann::json()) == nlohmann::json(TakeRunArgs(day, plan, take)) &&
-         state.value("inputs", "") == TakeInputs(plan, take) &&
-         fs::is_directory(day / take.name, ec);
+         state.value("args", nlohmann::json()) == nlohmann::json(args) &&
+         state.value("inputs", "") ==
+             TakeInputs(day, plan, *plan.Find(SplitUnit(unit).first), unit) &&
+         out != args.end() && out + 1 != args.end() && fs::is_directory(*(out + 1), ec);
+}
+
+bool TakeIsComplete(const fs::path& day, const BatchPlan& plan, const Take& take) {
+  return UnitIsComplete(day, plan, take.name);
 }
 
 int RunTake(const fs::path& day, const BatchPlan& plan, const std::string& name,
             const BatchCommandRunner& run_command) {
-  const Take* take = plan.Find(name);
-  if (take == nullptr) {
-    throw InputError(fmt::format("{}: the day has no take '{}'",
-                                 (day / ".batch" / "plan.json").string(), name));
+  const std::vector<std::string> args = UnitRunArgs(day, plan, name);
+  const Take* take = plan.Find(SplitUnit(name).first);
+  // A chunked take's run merges the chunks this list names.
+  if (name == take->name && !take->chunks.empty()) {
+    WriteTrackChunks(ChunkList(day, name), TakeChunks(day, plan, *take));
   }
-  const std::vector<std::string> args = TakeRunArgs(day, plan, *take);
   nlohmann::json state = {{"state", "running"}, {"args", args},
-                          {"inputs", TakeInputs(plan, *take)},
+                          {"inputs", TakeInputs(day, plan, *take, name)},
                           {"started", NowUtc()}, {"pid", getpid()},
                           {"reason", ""},        {"host", ""}};
   char host[256] = {0};
@@ -484,6 +642,20 @@ nlohmann::json CollectBatch(const fs::path& day, const std::string& scheduler,
     const nlohmann::json state = ReadTakeState(day, take.name);
     std::string s = state.is_object() ? state.value("state", "pending") : "pending";
     std::string reason = state.is_object() ? state.value("reason", "") : "";
+    // A chunked take's first pass and chunks, each a task of its own.
+    nlohmann::json chunks = nlohmann::json::array();
+    for (const std::string& unit : TakeUnits(take)) {
+      if (unit == take.name) continue;
+      const nlohmann::json u = ReadTakeState(day, unit);
+      std::string us = u.is_object() ? u.value("state", "pending") : "pending";
+      if (us == "running" && queue_state(unit).empty() && !StillRunning(u)) us = "incomplete";
+      if (us == "running" && s == "pending") s = "running";
+      chunks.push_back({{"unit", unit},
+                        {"state", us},
+                        {"reason", u.is_object() ? u.value("reason", "") : ""},
+                        {"seconds", u.is_object() ? u.value("seconds", 0.0) : 0.0},
+                        {"log", "logs/" + unit + ".log"}});
+    }
     const std::string queued = queue_state(take.name);
     if (!queued.empty() && s != "running") {
       s = "queued";
@@ -524,7 +696,8 @@ nlohmann::json CollectBatch(const fs::path& day, const std::string& scheduler,
                      {"warnings", warnings},
                      {"report", has_report ? take.name + "/report/report.html" : ""},
                      {"review", has_review ? take.name + "/review/index.html" : ""},
-                     {"thumbnail", thumbnail}});
+                     {"thumbnail", thumbnail},
+                     {"chunks", chunks}});
   }
   return {{"stage", "batch"},   {"scheduler", scheduler}, {"actor", plan.actor},
           {"updated", NowUtc()}, {"counts", counts},      {"takes", takes}};
@@ -594,12 +767,20 @@ int RunLocalBatch(const fs::path& day, const BatchPlan& plan, int jobs,
   if (jobs <= 0) jobs = static_cast<int>(cores);
   const std::map<std::string, std::string> env = {{"XDG_CACHE_HOME", DayIndexCache(day).string()}};
   EnsureDirectory(day / "logs");
-  std::vector<const Take*> todo;
+  // The units to run (a take, or a chunked take's first pass, chunks and
+  // merge), in order; a complete one is kept.
+  std::vector<std::string> todo;
   for (const Take& take : plan.takes) {
     if (TakeIsComplete(day, plan, take)) {
       spdlog::info("batch: take {} complete: kept", take.name);
-    } else {
-      todo.push_back(&take);
+      continue;
+    }
+    for (const std::string& unit : TakeUnits(take)) {
+      if (unit != take.name && UnitIsComplete(day, plan, unit)) {
+        spdlog::info("batch: {} complete: kept", unit);
+        continue;
+      }
+      todo.push_back(unit);
     }
   }
   if (!todo.empty()) {
@@ -613,31 +794,45 @@ int RunLocalBatch(const fs::path& day, const BatchPlan& plan, int jobs,
                    (day / "logs" / "index.log").string());
     }
   }
-  // Each take gets its share of the cores (results do not depend on it).
+  // Each unit gets its share of the cores (results do not depend on it).
   const int threads = std::max(1, static_cast<int>(cores) / std::min<int>(jobs, std::max<size_t>(1, todo.size())));
   std::map<pid_t, std::string> running;
-  size_t next = 0;
+  std::set<std::string> waiting(todo.begin(), todo.end());  // not started or not ended
   int failed = 0;
-  while (next < todo.size() || !running.empty()) {
-    while (next < todo.size() && static_cast<int>(running.size()) < jobs) {
-      const Take& take = *todo[next++];
-      fs::remove(TakeLog(day, take.name));
-      spdlog::info("batch: take {} started", take.name);
+  while (!waiting.empty()) {
+    // Start, in order, the units whose units before them have ended
+    // (whatever their end: a take whose chunk failed fails with the reason).
+    for (const std::string& unit : todo) {
+      if (static_cast<int>(running.size()) >= jobs) break;
+      if (!waiting.count(unit) ||
+          std::any_of(running.begin(), running.end(), [&](const auto& r) { return r.second == unit; })) {
+        continue;
+      }
+      const std::vector<std::string> deps = UnitDependencies(plan, unit);
+      if (std::any_of(deps.begin(), deps.end(), [&](const std::string& d) { return waiting.count(d) > 0; })) {
+        continue;
+      }
+      fs::remove(TakeLog(day, unit));
+      spdlog::info("batch: {} started", unit);
       const pid_t pid = StartProcess({hmc_binary.string(), "--threads", std::to_string(threads),
                                       "batch", "--out", fs::absolute(day).string(), "--take",
-                                      take.name},
-                                     env, TakeLog(day, take.name));
-      running[pid] = take.name;
+                                      unit},
+                                     env, TakeLog(day, unit));
+      running[pid] = unit;
     }
     int status = 0;
     const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) break;  // nothing left to wait for (cannot happen while units wait)
     const auto it = running.find(pid);
     if (it == running.end()) continue;
     const std::string name = it->second;
     running.erase(it);
+    waiting.erase(name);
     const nlohmann::json state = ReadTakeState(day, name);
-    if (!state.is_object() || state.value("state", "") != "done") ++failed;
-    // A take whose process died without recording its end (a crash).
+    if (SplitUnit(name).second.empty() && (!state.is_object() || state.value("state", "") != "done")) {
+      ++failed;
+    }
+    // A unit whose process died without recording its end (a crash).
     if (state.is_object() && state.value("state", "") == "running") {
       nlohmann::json crashed = state;
       crashed["state"] = "failed";

@@ -35,6 +35,8 @@ struct BatchOptions {
   int slurm_cpus = 1;               // sbatch --cpus-per-task (cores per take)
   std::string slurm_account;        // sbatch --account ("" = none)
   std::vector<std::string> slurm_extra;  // more sbatch arguments, given to every job ("--qos=low")
+  int chunk_frames = 0;   // a take longer than this is tracked in chunks of this many frames, run as tasks of their own (0 = one task per take)
+  int chunk_overlap = 30; // frames each chunk also tracks before its own, so that its labels are settled (docs/farm.md)
 
   void Register(OptionFields* fields);
   bool Check() const;
@@ -46,6 +48,9 @@ struct Take {
   std::string shot;         // shot folder (footage)
   std::string frames;       // frame range "A:B" ("" = the run config's, else all)
   std::string calibration;  // the take's calibration ("" = --calibration)
+  // Its frame chunks (hmc batch --chunk-frames): each chunk's own frames,
+  // inclusive, in order (empty: the take is one task).
+  std::vector<std::pair<int, int>> chunks;
 };
 
 // The takes of --takes: a folder (its sub-folders holding footage,
@@ -64,8 +69,32 @@ struct BatchPlan {
   std::string calibration;  // absolute (--calibration)
   std::string run_config;   // DAY/.batch/run.yaml ("" = defaults)
   std::vector<Take> takes;  // paths absolute
+  int chunk_overlap = 0;    // frames a chunk tracks before its own (BatchOptions)
   const Take* Find(const std::string& name) const;
 };
+
+// Splits each take of `plan` longer than `chunk_frames` frames into chunks
+// of that many frames (Take::chunks; the last may be shorter); 0 leaves
+// every take one task. The take's frames are its footage's, within its
+// frame range (the take's, else the run config's `run.frames`). A take
+// whose footage cannot be opened is left one task: its run fails with the
+// reason.
+void PlanChunks(BatchPlan* plan, int chunk_frames, int chunk_overlap);
+
+// What the batch runs, by name ("units"): a take NAME is the unit NAME
+// (its hmc run; for a chunked take, on the tracks of its chunks); a chunked
+// take also has NAME@calibrate (its first pass: hmc run --to calibrate,
+// the tag calibration from the whole take, which its chunks then use as it
+// is) and NAME@chunkK (chunk K's hmc run --to track on its frames and the
+// overlap before them, in DAY/.batch/chunks/NAME/K/). In order: a unit
+// runs after those before it of its take (NAME@calibrate, then the chunks
+// in any order, then NAME).
+std::vector<std::string> TakeUnits(const Take& take);
+// The take of a unit name, and its part: "" (the take), "calibrate", "chunkK".
+std::pair<std::string, std::string> SplitUnit(const std::string& unit);
+// The units `unit` waits for (the ones before it of its take, per the
+// order above).
+std::vector<std::string> UnitDependencies(const BatchPlan& plan, const std::string& unit);
 void WritePlan(const std::filesystem::path& day, const BatchPlan& plan);
 BatchPlan ReadPlan(const std::filesystem::path& day);
 
@@ -87,6 +116,10 @@ std::filesystem::path DayIndexCache(const std::filesystem::path& day);
 // The `hmc run` command line of `take` (without the program name).
 std::vector<std::string> TakeRunArgs(const std::filesystem::path& day, const BatchPlan& plan,
                                      const Take& take);
+// The `hmc run` command line of a unit (TakeUnits). Throws InputError for
+// a unit the day does not have.
+std::vector<std::string> UnitRunArgs(const std::filesystem::path& day, const BatchPlan& plan,
+                                     const std::string& unit);
 
 // DAY/logs/<take>.log: what the take's process printed.
 std::filesystem::path TakeLog(const std::filesystem::path& day, const std::string& take);
@@ -102,8 +135,12 @@ nlohmann::json ReadTakeState(const std::filesystem::path& day, const std::string
 // workspace there: the batch skips it (its hmc run would find every stage
 // complete).
 bool TakeIsComplete(const std::filesystem::path& day, const BatchPlan& plan, const Take& take);
+// The same for one unit (TakeUnits).
+bool UnitIsComplete(const std::filesystem::path& day, const BatchPlan& plan,
+                    const std::string& unit);
 
-// The per-take command: runs `hmc run` on the take with `run_command`
+// The per-take command: runs `hmc run` on the take (or unit, TakeUnits)
+// with `run_command`
 // (apps/command.h RunCommandLine), recording its state before and after;
 // a take that throws is "failed" with the message as its reason. Returns 0
 // when done, 1 when failed.

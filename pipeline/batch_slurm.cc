@@ -34,7 +34,7 @@ void WriteScript(const fs::path& file, const std::string& text) {
 
 std::string JobList(const SlurmJobs& jobs) {
   std::string list;
-  for (const std::string* id : {&jobs.index, &jobs.array, &jobs.report}) {
+  for (const std::string* id : {&jobs.index, &jobs.first, &jobs.array, &jobs.merge, &jobs.report}) {
     if (!id->empty()) list += (list.empty() ? "" : ",") + *id;
   }
   return list;
@@ -83,6 +83,8 @@ SlurmJobs ReadSlurmJobs(const fs::path& day) {
   jobs.index = json.value("index", "");
   jobs.array = json.value("array", "");
   jobs.report = json.value("report", "");
+  jobs.first = json.value("first", "");
+  jobs.merge = json.value("merge", "");
   if (json.contains("tasks")) jobs.tasks = json["tasks"].get<std::map<std::string, int>>();
   return jobs;
 }
@@ -101,16 +103,24 @@ SlurmJobs SubmitSlurmBatch(const fs::path& day, const BatchPlan& plan, const Bat
         day.string(), JobList(previous), day.string()));
   }
   SlurmJobs jobs;
-  std::string takes_txt, array;
-  for (size_t i = 0; i < plan.takes.size(); ++i) {
-    const Take& take = plan.takes[i];
-    takes_txt += take.name + "\n";
-    if (TakeIsComplete(day, plan, take)) {
-      spdlog::info("batch: take {} complete: kept", take.name);
-      continue;
+  // Every unit of the day has a line of takes.txt (its array index is the
+  // line, minus one); the three arrays list the units still to do.
+  std::string takes_txt, first, array, merge;
+  int line = 0;
+  for (const Take& take : plan.takes) {
+    const bool complete = TakeIsComplete(day, plan, take);
+    if (complete) spdlog::info("batch: take {} complete: kept", take.name);
+    for (const std::string& unit : TakeUnits(take)) {
+      const int i = line++;
+      takes_txt += unit + "\n";
+      if (complete || (unit != take.name && UnitIsComplete(day, plan, unit))) continue;
+      jobs.tasks[unit] = i;
+      const std::string part = SplitUnit(unit).second;
+      std::string& list = part == "calibrate" ? first
+                          : part.empty() && !take.chunks.empty() ? merge
+                                                                  : array;
+      list += (list.empty() ? "" : ",") + std::to_string(i);
     }
-    jobs.tasks[take.name] = static_cast<int>(i);
-    array += (array.empty() ? "" : ",") + std::to_string(i);
   }
   if (jobs.tasks.empty()) {
     spdlog::info("batch: every take is complete; nothing to submit");
@@ -152,38 +162,54 @@ SlurmJobs SubmitSlurmBatch(const fs::path& day, const BatchPlan& plan, const Bat
   jobs.index = job("index", {"--output=" + logs + "/slurm-index-%j.out",
                              fmt::format("--cpus-per-task={}", options.slurm_cpus),
                              (dir / "index.sh").string()});
-  std::vector<std::string> take_args = {"--output=" + logs + "/slurm-take-%A_%a.out",
-                                        "--array=" + array, "--dependency=afterany:" + jobs.index,
-                                        fmt::format("--cpus-per-task={}", options.slurm_cpus)};
-  if (!options.slurm_mem.empty()) take_args.push_back("--mem=" + options.slurm_mem);
-  take_args.push_back((dir / "take.sh").string());
-  jobs.array = job("take", take_args);
+  // The arrays in their order, each after the job before it.
+  std::string after = jobs.index;
+  auto submit_array = [&](const std::string& name, const std::string& list) {
+    std::vector<std::string> args = {"--output=" + logs + "/slurm-" + name + "-%A_%a.out",
+                                     "--array=" + list, "--dependency=afterany:" + after,
+                                     fmt::format("--cpus-per-task={}", options.slurm_cpus)};
+    if (!options.slurm_mem.empty()) args.push_back("--mem=" + options.slurm_mem);
+    args.push_back((dir / "take.sh").string());
+    after = job(name, args);
+    return after;
+  };
+  if (!first.empty()) jobs.first = submit_array("first", first);
+  if (!array.empty()) jobs.array = submit_array("take", array);
+  if (!merge.empty()) jobs.merge = submit_array("merge", merge);
   jobs.report = job("report", {"--output=" + logs + "/slurm-report-%j.out",
-                               "--dependency=afterany:" + jobs.array, (dir / "report.sh").string()});
+                               "--dependency=afterany:" + after, (dir / "report.sh").string()});
   const nlohmann::json json = {{"index", jobs.index},
+                               {"first", jobs.first},
                                {"array", jobs.array},
+                               {"merge", jobs.merge},
                                {"report", jobs.report},
                                {"tasks", jobs.tasks}};
   WriteFileAtomic(day / ".batch" / "slurm.json", json.dump(1) + "\n");
-  spdlog::info("batch: submitted {} takes: index job {}, array {} [{}], day report {}",
-               jobs.tasks.size(), jobs.index, jobs.array, array, jobs.report);
+  spdlog::info("batch: submitted {} tasks: index job {}, first passes {} [{}], array {} [{}], "
+               "merges {} [{}], day report {}",
+               jobs.tasks.size(), jobs.index, jobs.first, first, jobs.array, array, jobs.merge,
+               merge, jobs.report);
   // batch.json now, so that it lists the day from the start.
-  WriteDayFiles(day, CollectBatch(day, "slurm", [&](const std::string& take) {
-                  return jobs.tasks.count(take) ? std::string("PENDING") : std::string();
+  WriteDayFiles(day, CollectBatch(day, "slurm", [&](const std::string& unit) {
+                  return jobs.tasks.count(unit) ? std::string("PENDING") : std::string();
                 }));
   return jobs;
 }
 
 std::map<std::string, std::string> SlurmTakeQueue(const SlurmJobs& jobs) {
   std::map<std::string, std::string> out;
-  if (jobs.array.empty()) return out;
   std::map<int, std::string> by_index;
-  for (const auto& [take, index] : jobs.tasks) by_index[index] = take;
+  for (const auto& [unit, index] : jobs.tasks) by_index[index] = unit;
   for (const auto& [id, state] : Queue(jobs)) {
-    if (id.rfind(jobs.array + "_", 0) != 0) continue;
-    int index = -1;
-    if (ParseInt(id.substr(jobs.array.size() + 1), &index) && by_index.count(index)) {
-      out[by_index[index]] = state;
+    for (const std::string* array : {&jobs.first, &jobs.array, &jobs.merge}) {
+      if (array->empty() || id.rfind(*array + "_", 0) != 0) continue;
+      int index = -1;
+      if (ParseInt(id.substr(array->size() + 1), &index) && by_index.count(index)) {
+        const std::string& unit = by_index[index];
+        out[unit] = state;
+        std::string& take = out[SplitUnit(unit).first];
+        if (take != "RUNNING") take = state;
+      }
     }
   }
   // The index job pending holds every take of the array.
@@ -195,9 +221,13 @@ void WaitSlurmJobs(const SlurmJobs& jobs) {
 }
 
 std::string SlurmQueueText(const SlurmJobs& jobs) {
-  if (jobs.array.empty()) return "";
-  std::string out = fmt::format("slurm jobs: index {}, takes {}, day report {}\n", jobs.index,
+  if (jobs.index.empty()) return "";
+  std::string out = fmt::format("slurm jobs: index {}, takes {}, day report {}", jobs.index,
                                 jobs.array, jobs.report);
+  if (!jobs.first.empty() || !jobs.merge.empty()) {
+    out += fmt::format(" (chunked takes: first passes {}, merges {})", jobs.first, jobs.merge);
+  }
+  out += "\n";
   for (const auto& [id, state] : Queue(jobs)) out += fmt::format("  {} {}\n", id, state);
   return out;
 }

@@ -5,6 +5,10 @@
 //      index is the take's line in DAY/.batch/takes.txt), each running
 //      the per-take command `hmc batch --out DAY --take NAME`, after 1
 //      (afterany: a failed index only costs each take its own build);
+//      with chunked takes (--chunk-frames), their first passes are an
+//      array hmc-first before it, its tasks also run their chunks
+//      (NAME@chunkK), and their merging runs are an array hmc-merge after
+//      it (pipeline/batch.h, TakeUnits);
 //   3. hmc-report: `hmc batch --out DAY --day_report`, after 2 (afterany,
 //      so the day report lists the failed takes too).
 // The job scripts are written to DAY/.batch/slurm/ (a facility can read
@@ -23,7 +27,11 @@ namespace hmc {
 
 struct SlurmJobs {
   std::string index, array, report;     // job ids ("" = none submitted)
-  std::map<std::string, int> tasks;     // take -> its array index
+  // With chunked takes (--chunk-frames): the array of their first passes
+  // (NAME@calibrate), before `array` (which then also runs their chunks),
+  // and the array of their merging runs (NAME), after it.
+  std::string first, merge;
+  std::map<std::string, int> tasks;     // unit (a take, NAME@calibrate, NAME@chunkK) -> its array index
 };
 
 // DAY/.batch/slurm.json, or no jobs.
@@ -36,8 +44,9 @@ SlurmJobs ReadSlurmJobs(const std::filesystem::path& day);
 SlurmJobs SubmitSlurmBatch(const std::filesystem::path& day, const BatchPlan& plan,
                            const BatchOptions& options, const std::filesystem::path& hmc_binary);
 
-// squeue's state of every queued task of the array, by take ("PENDING",
-// "RUNNING", ...); takes not in the queue are absent.
+// squeue's state of every queued task of the arrays, by unit and by take
+// ("PENDING", "RUNNING", ...: a take has the state of one of its queued
+// units); units and takes not in the queue are absent.
 std::map<std::string, std::string> SlurmTakeQueue(const SlurmJobs& jobs);
 
 // Blocks until no job of `jobs` is in squeue.

@@ -19,6 +19,7 @@
 #include "core/hash.h"
 #include "core/options.h"
 #include "core/text.h"
+#include "pipeline/track_chunks.h"
 #include "pipeline/workspace.h"
 #include "tracking/footage_reader.h"
 #include "tracking/video_timecode.h"
@@ -343,6 +344,27 @@ StagePlan Pipeline::Plan(const std::string& stage) const {
       const std::vector<std::string> footage = FootageFlags();
       args.insert(args.end(), footage.begin(), footage.end());
       return RunCommand("calibrate", args, dir);
+    };
+  } else if (stage == "track" && !input_.track_chunks.empty()) {
+    // A take tracked in frame chunks (hmc batch --chunk-frames): their
+    // tracks, each chunk's own frames, are the stage's (docs/farm.md).
+    const std::vector<TrackChunk> chunks = ReadTrackChunks(input_.track_chunks);
+    key.AddInput("track_chunks", input_.track_chunks);
+    for (size_t i = 0; i < chunks.size(); ++i) {
+      std::error_code ec;
+      if (!fs::is_regular_file(ChunkTracks(chunks[i]), ec)) {
+        ThrowInputError(ChunkTracks(chunks[i]), 0,
+                        "chunk {} of the take (frames {}-{}) has no tracks: its task failed or "
+                        "has not run (hmc batch runs it again)",
+                        i, chunks[i].first, chunks[i].last);
+      }
+      key.AddInput(fmt::format("chunk{}.tracks", i), ChunkTracks(chunks[i]));
+    }
+    key.AddInput("calibration", calibration);
+    key.AddInputText("actor", actor_hash_);
+    plan.run = [chunks](const fs::path& dir) {
+      MergeTrackChunks(chunks, dir);
+      return nlohmann::json{{"merged_chunks", chunks.size()}};
     };
   } else if (stage == "track") {
     AddFootageInputs(&key);

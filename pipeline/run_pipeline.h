@@ -58,6 +58,10 @@ struct RunInput {
   std::string calibration;  // nominal calibration.yaml (or the rig's calibration)
   std::string out;          // workspace folder WORK
   std::string fixes;        // track_fixes.csv for the track stage (hmc review; "" = none)
+  // The take's frame chunks, tracked apart (pipeline/track_chunks.h, written
+  // by hmc batch --chunk-frames): the track stage merges their tracks
+  // instead of tracking ("" = track the footage).
+  std::string track_chunks;
   std::string config;       // run config: `run:` (RunOptions, read by hmc run) and a section per stage with that stage's options ("" = defaults)
   // Checks one stage's section of `config` as that stage's command would
   // read it (keys, types, ranges; throws InputError naming the file and

@@ -7,6 +7,7 @@
 #include <map>
 #include <thread>
 
+#include "core/tracks_2d.h"
 #include "pipeline/svg_plot.h"
 #include "tests/batch_fixture.h"
 
@@ -140,6 +141,78 @@ TEST_F(BatchTest, AListOfTakesWithFrameRanges) {
   EXPECT_EQ(reserved.exit_code, 2);
   EXPECT_NE(reserved.err.find("day_list.yaml:2"), std::string::npos) << reserved.err;
   EXPECT_NE(reserved.err.find("'report.html'"), std::string::npos) << reserved.err;
+}
+
+// A take in frame chunks (--chunk-frames): its first pass calibrates from
+// the whole take, each chunk tracks its frames (the second from 1 frame
+// before its own), and the take's run merges the chunks' own frames into
+// its track stage and runs the rest on the whole take. A killed chunk is
+// redone with the merge alone, and the day comes out the same.
+TEST_F(BatchTest, AChunkedTakeMergesItsChunksAndRedoesAKilledChunkAlone) {
+  const fs::path& d = *dir_;
+  const fs::path list = d / "chunk_takes.csv";
+  WriteFileAtomic(list, fmt::format("shot\ntakes/{}\n", Take(2)));
+  WriteFileAtomic(d / "chunk.yaml", "run:\n  to: stabilize\nbatch:\n  chunk_overlap: 1\n");
+  const std::string config = fmt::format(" --config '{}'", (d / "chunk.yaml").string());
+  const fs::path whole = d / "chunk_day_whole";
+  const CliResult w = RunHmc(BatchArgs(list, whole) + config, d);
+  ASSERT_EQ(w.exit_code, 0) << w.err;
+  const fs::path day = d / "chunk_day";
+  const CliResult plan = RunHmc(BatchArgs(list, day) + config + " --chunk-frames 2 --plan", d);
+  ASSERT_EQ(plan.exit_code, 0) << plan.err;
+  for (const char* unit : {"@calibrate'", "@chunk0'", "@chunk1'"}) {
+    EXPECT_NE(plan.out.find("--take '" + Take(2) + unit), std::string::npos) << plan.out;
+  }
+  const CliResult c = RunHmc(BatchArgs(list, day) + config + " --chunk-frames 2 --jobs 2", d);
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  const nlohmann::json take = TakesByName(day)[Take(2)];
+  EXPECT_EQ(take["state"], "done") << take.dump();
+  ASSERT_EQ(take["chunks"].size(), 3u);
+  for (const auto& unit : take["chunks"]) EXPECT_EQ(unit["state"], "done") << unit.dump();
+  EXPECT_EQ(take["figures"]["frames"], kFrames);
+  // The merged tracks are each chunk's own frames: frames 1-2 of chunk 0,
+  // which started where the whole take does with the same calibration
+  // (so its rows are the unchunked run's), and frame 3 of chunk 1, which
+  // tracked frames 2-3.
+  EXPECT_EQ(ReadFile(day / Take(2) / "calibrate" / "calibration.yaml"),
+            ReadFile(whole / Take(2) / "calibrate" / "calibration.yaml"));
+  const std::vector<Track2d> merged = ReadTracks2dCsv(day / Take(2) / "track" / "tracks_2d.csv");
+  const std::vector<Track2d> unchunked =
+      ReadTracks2dCsv(whole / Take(2) / "track" / "tracks_2d.csv");
+  const fs::path chunks = day / ".batch" / "chunks" / Take(2);
+  const std::vector<Track2d> chunk1 = ReadTracks2dCsv(chunks / "1" / "track" / "tracks_2d.csv");
+  ASSERT_FALSE(chunk1.empty());
+  EXPECT_EQ(chunk1.front().frame, 2);
+  // (frame, camera, marker) -> pixel of the rows the merge must keep.
+  std::map<std::string, Vec2> expected;
+  for (const auto* rows : {&unchunked, &chunk1}) {
+    for (const Track2d& r : *rows) {
+      if ((rows == &unchunked) == (r.frame <= 2)) {
+        expected[fmt::format("{} {} {}", r.frame, r.camera, r.marker)] = r.pixel;
+      }
+    }
+  }
+  EXPECT_EQ(merged.size(), expected.size());
+  for (const Track2d& row : merged) {
+    const std::string id = fmt::format("{} {} {}", row.frame, row.camera, row.marker);
+    ASSERT_TRUE(expected.count(id)) << id;
+    EXPECT_EQ(expected[id], row.pixel) << id;
+  }
+
+  // Chunk 1 killed before the take's merge ran (its state left running,
+  // its track stage never finished): the same command redoes it and the
+  // take, keeps the first pass and chunk 0, and the day comes out the same.
+  const auto before = DayData(day, {Take(2)});
+  WriteFileAtomic(day / ".batch" / "takes" / (Take(2) + "@chunk1.json"),
+                  "{\"state\": \"running\", \"pid\": 0}\n");
+  fs::remove(day / ".batch" / "takes" / (Take(2) + ".json"));
+  fs::remove_all(chunks / "1" / "track");
+  const CliResult again = RunHmc(BatchArgs(list, day) + config + " --chunk-frames 2 --jobs 2", d);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.err.find(Take(2) + "@calibrate complete: kept"), std::string::npos) << again.err;
+  EXPECT_NE(again.err.find(Take(2) + "@chunk0 complete: kept"), std::string::npos) << again.err;
+  EXPECT_NE(again.err.find(Take(2) + "@chunk1 started"), std::string::npos) << again.err;
+  EXPECT_EQ(DayData(day, {Take(2)}), before);
 }
 
 }  // namespace
