@@ -21,6 +21,14 @@ function(hmc_target_common target)
   if(HMC_SANITIZE)
     target_compile_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})
     target_link_options(${target} PRIVATE ${HMC_SANITIZER_FLAGS})
+    # Eigen stops trusting malloc's 16-byte alignment under ASan and pads
+    # its blocks itself (handmade_aligned_malloc), but Debian's libceres.a,
+    # built without ASan, carries out-of-line copies of Eigen's aligned_malloc
+    # that trust it. The linker keeps one copy of each inline function, so a
+    # matrix could be allocated by Ceres' copy and freed by ours: a
+    # heap-buffer-overflow report. Every target takes Ceres' side (ASan's
+    # malloc returns 16-byte-aligned blocks on x86-64, as glibc's does).
+    target_compile_definitions(${target} PRIVATE EIGEN_MALLOC_ALREADY_ALIGNED=1)
   endif()
 endfunction()
 
